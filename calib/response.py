@@ -1,0 +1,107 @@
+"""Camera response curves: encoded pixel value <-> linear light.
+
+A camera stores *encoded* values; the math of MODEL.md needs *linear* light. Both sides are
+normalised to 0..1 here: encoded 0..1 is the pixel code divided by its full scale (255 or
+65535), linear 0..1 is light in the camera's units (1 = the light that reaches full scale).
+
+The three responses of ``[camera] response`` in rig.toml (INTERFACES.md):
+
+- ``"linear"``: value = linear.
+- ``"srgb"``: the IEC 61966-2-1 sRGB transfer function (linear segment near black, then a
+  2.4 power with offset).
+- a number ``g`` > 0: value = linear^(1/g) (a pure power law; ``g = 2.2`` is the classic video
+  gamma, ``g = 1`` is the same as ``"linear"``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+ResponseKind = Literal["linear", "srgb", "gamma"]
+
+ALLOWED = '"linear", "srgb" or a positive number g (meaning value = linear^(1/g))'
+
+# sRGB constants (IEC 61966-2-1). The encode threshold is the decode threshold mapped through
+# the linear segment, so the two branches switch at the same point.
+_SRGB_A = 0.055
+_SRGB_GAMMA = 2.4
+_SRGB_SLOPE = 12.92
+_SRGB_DECODE_KNEE = 0.04045
+_SRGB_ENCODE_KNEE = _SRGB_DECODE_KNEE / _SRGB_SLOPE
+
+
+@dataclass(frozen=True)
+class Response:
+    """A camera response curve. Build one with :func:`parse_response`.
+
+    ``kind`` is ``"linear"``, ``"srgb"`` or ``"gamma"``; ``gamma`` is the exponent g of the
+    power law (1.0 for the other kinds). Both methods take arrays of any shape and return
+    float32 (computed in float64); inputs are clipped to 0..1 first (a camera cannot encode
+    light beyond its full scale, and noise can push linear values slightly below 0).
+    """
+
+    kind: ResponseKind
+    gamma: float = 1.0
+
+    @property
+    def spec(self) -> str | float:
+        """The rig.toml value that describes this response: ``"linear"``, ``"srgb"`` or g."""
+        return self.gamma if self.kind == "gamma" else self.kind
+
+    def decode(self, encoded01: np.ndarray) -> np.ndarray:
+        """Encoded 0..1 (pixel code / full scale) -> linear 0..1. Same shape, float32."""
+        e = np.clip(np.asarray(encoded01, dtype=np.float64), 0.0, 1.0)
+        if self.kind == "gamma":
+            e = np.power(e, self.gamma)
+        elif self.kind == "srgb":
+            e = np.where(
+                e <= _SRGB_DECODE_KNEE,
+                e / _SRGB_SLOPE,
+                np.power((e + _SRGB_A) / (1.0 + _SRGB_A), _SRGB_GAMMA),
+            )
+        return np.clip(e, 0.0, 1.0).astype(np.float32)
+
+    def encode(self, linear01: np.ndarray) -> np.ndarray:
+        """Linear 0..1 -> encoded 0..1 (multiply by 255 or 65535 for codes). Float32."""
+        x = np.clip(np.asarray(linear01, dtype=np.float64), 0.0, 1.0)
+        if self.kind == "gamma":
+            x = np.power(x, 1.0 / self.gamma)
+        elif self.kind == "srgb":
+            x = np.where(
+                x <= _SRGB_ENCODE_KNEE,
+                x * _SRGB_SLOPE,
+                (1.0 + _SRGB_A) * np.power(x, 1.0 / _SRGB_GAMMA) - _SRGB_A,
+            )
+        return np.clip(x, 0.0, 1.0).astype(np.float32)
+
+
+def parse_response(spec: str | float) -> Response:
+    """The response named by a rig.toml ``response`` value.
+
+    ``spec`` is ``"linear"``, ``"srgb"`` (case-insensitive) or a positive finite number g,
+    given as a number or as a numeric string (``"2.2"``). Raises ``ValueError`` naming the
+    allowed values otherwise.
+    """
+    if isinstance(spec, bool):
+        raise ValueError(f"unknown camera response {spec!r}: expected {ALLOWED}")
+    if isinstance(spec, str):
+        name = spec.strip().lower()
+        if name in ("linear", "srgb"):
+            return Response(kind=name)  # type: ignore[arg-type]
+        try:
+            value = float(name)
+        except ValueError:
+            raise ValueError(f"unknown camera response {spec!r}: expected {ALLOWED}") from None
+    elif isinstance(spec, int | float):
+        value = float(spec)
+    else:
+        raise ValueError(
+            f"unknown camera response {spec!r} ({type(spec).__name__}): expected {ALLOWED}"
+        )
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"camera response gamma must be a positive finite number, got {spec!r}")
+    return Response(kind="gamma", gamma=value)
