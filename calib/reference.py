@@ -1,0 +1,165 @@
+"""The numpy reference of the per-frame compensation (docs/RUNTIME.md).
+
+This is the ground truth that the GLSL shader must match. It is plain and exact on purpose:
+no caching, no tricks, float32 like the GPU.
+
+Conventions: state arrays are (H, W, C), row 0 at the top of the projector image. Frames in
+and out are 8-bit encoded RGB (0..255). Everything in between is linear light in the
+calibration camera's units (0..1 = the camera's full scale).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+
+Method = Literal["pixel", "paper", "identity"]
+
+
+@dataclass
+class RuntimeModel:
+    """What the per-frame formula needs, for one method, as float32 arrays.
+
+    Common: ``refl`` (H, W, 3) unit reflection vectors R(x); ``pos`` (H, W, 3) surface points
+    in metres; ``cam_eye`` (3,) the calibration camera's position; ``fwd_lut`` (256, 3) level
+    -> linear value; ``inv_lut`` (N, 3) linear value -> level/255, sampled uniformly on
+    [``inv_lo``, ``inv_hi``] per channel.
+
+    ``pixel``: ``Ww``/``Wc`` (H, W, 3, 3), ``Aw``/``Ac`` (H, W, 3), ``kappa`` (3,), ``gamma``.
+    ``paper``: ``Ww`` (3, 3) = W~_w, ``Wc_inv`` (3, 3) = (W~_c at the eye)^-1; ``Aw``/``Ac``
+    are unused (zeros); ``fwd_lut`` is rho_w and ``inv_lut`` is rho_c^-1 at the current eye.
+    """
+
+    method: Method
+    refl: np.ndarray
+    pos: np.ndarray
+    cam_eye: np.ndarray
+    fwd_lut: np.ndarray
+    inv_lut: np.ndarray
+    inv_lo: np.ndarray
+    inv_hi: np.ndarray
+    Ww: np.ndarray
+    Wc: np.ndarray | None = None
+    Wc_inv: np.ndarray | None = None
+    Aw: np.ndarray | None = None
+    Ac: np.ndarray | None = None
+    kappa: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    gamma: float = 1.0
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the projector grid."""
+        return int(self.refl.shape[0]), int(self.refl.shape[1])
+
+    def subsample(self, step: int) -> RuntimeModel:
+        """The same model on every ``step``-th pixel (for tone-map thumbnails)."""
+
+        def sub(a: np.ndarray | None, per_pixel_ndim: int) -> np.ndarray | None:
+            if a is None or a.ndim < per_pixel_ndim:
+                return a
+            return a[::step, ::step]
+
+        return replace(
+            self,
+            refl=self.refl[::step, ::step],
+            pos=self.pos[::step, ::step],
+            Ww=sub(self.Ww, 4),
+            Wc=sub(self.Wc, 4),
+            Aw=sub(self.Aw, 3),
+            Ac=sub(self.Ac, 3),
+        )
+
+
+def lut_forward(lut: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """Linear interpolation in a (256, 3) LUT at fractional levels (..., 3) in 0..255."""
+    t = np.clip(levels, 0.0, 255.0).astype(np.float32)
+    i0 = np.minimum(np.floor(t).astype(np.int32), 254)
+    f = t - i0
+    ch = np.arange(3)
+    a = lut[i0, ch]
+    b = lut[i0 + 1, ch]
+    return (a + (b - a) * f).astype(np.float32)
+
+
+def lut_inverse(lut: np.ndarray, lo: np.ndarray, hi: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Linear interpolation in an (N, 3) inverse LUT sampled on [lo, hi]; returns 0..1."""
+    n = lut.shape[0]
+    span = np.maximum(hi - lo, np.float32(1e-12)).astype(np.float32)
+    t = np.clip((values - lo) / span, 0.0, 1.0).astype(np.float32) * np.float32(n - 1)
+    i0 = np.minimum(np.floor(t).astype(np.int32), n - 2)
+    f = t - i0
+    ch = np.arange(3)
+    a = lut[i0, ch]
+    b = lut[i0 + 1, ch]
+    return (a + (b - a) * f).astype(np.float32)
+
+
+def lobe_change(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
+    """ds(x) = kappa ((R.V_eye)^+ ^gamma - (R.V_cam)^+ ^gamma), shape (H, W, 3)."""
+    eye = np.asarray(eye, np.float32)
+    v = eye - model.pos
+    v /= np.linalg.norm(v, axis=-1, keepdims=True)
+    vc = model.cam_eye.astype(np.float32) - model.pos
+    vc /= np.linalg.norm(vc, axis=-1, keepdims=True)
+    g = np.float32(model.gamma)
+    se = np.maximum(np.sum(model.refl * v, axis=-1), 0.0) ** g
+    sc = np.maximum(np.sum(model.refl * vc, axis=-1), 0.0) ** g
+    return (model.kappa[None, None, :] * (se - sc)[..., None]).astype(np.float32)
+
+
+def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
+    """C_w: what the white screen shows for an 8-bit frame (H, W, 3), linear camera units."""
+    pw = lut_forward(model.fwd_lut, frame.astype(np.float32))
+    if model.method == "pixel":
+        return np.einsum("hwij,hwj->hwi", model.Ww, pw) + model.Aw
+    return pw @ model.Ww.T
+
+
+def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    """Solve for the projector signal that shows ``target`` (H, W, 3) at ``eye``.
+
+    Returns the value fed to the inverse LUT, before clamping to the LUT domain: linear
+    projector light Pc for ``pixel`` (valid range 0..1), decoupled luminance C~_c for
+    ``paper`` (valid range [inv_lo, inv_hi]).
+    """
+    if model.method == "pixel":
+        ds = lobe_change(model, eye)
+        m = model.Wc + ds[..., :, None] * model.Ww
+        return np.linalg.solve(m, (target - model.Ac)[..., None])[..., 0].astype(np.float32)
+    return (target @ model.Wc_inv.T).astype(np.float32)
+
+
+def compensate(
+    model: RuntimeModel,
+    frame: np.ndarray,
+    eye: np.ndarray,
+    alpha: float,
+    beta: float,
+    identity: bool = False,
+) -> np.ndarray:
+    """The per-pixel formula of docs/RUNTIME.md on the CPU.
+
+    Args:
+        model: the runtime model of one method, on an (H, W) projector grid.
+        frame: (H, W, 3) uint8, encoded RGB 0..255, already at the projector's resolution.
+        eye: (3,) eye position in metres (world frame of MODEL.md).
+        alpha, beta: tone map C_c = alpha C_w + beta (Eq. 21), linear camera units.
+        identity: pass the frame through unchanged (same quantisation path).
+
+    Returns:
+        (H, W, 3) uint8, the image to project.
+    """
+    if frame.shape[:2] != model.shape or frame.ndim != 3 or frame.shape[2] != 3:
+        raise ValueError(f"frame must be {(*model.shape, 3)}, got {frame.shape}")
+    if identity:
+        out = frame.astype(np.float32) / np.float32(255.0)
+    else:
+        cw = white_response(model, frame)
+        t = np.float32(alpha) * cw + np.float32(beta)
+        y = target_to_projector(model, t.astype(np.float32), eye)
+        if model.method == "pixel":
+            y = np.clip(y, 0.0, 1.0)
+        out = lut_inverse(model.inv_lut, model.inv_lo, model.inv_hi, y)
+    return np.rint(np.clip(out, 0.0, 1.0) * np.float32(255.0)).astype(np.uint8)

@@ -1,0 +1,197 @@
+"""Synthetic, plausible runtime models and test frames for tests and benchmarks (no GL).
+
+The geometry is a flat screen z = 0 lit by a projector at (0, -0.03, 0.5) looking at the
+origin (vertical field of view 20 degrees); the calibration camera is at (0, 0.035, 0.5).
+Colour mixing matrices are smooth random fields, diagonal-dominant; responses are gamma 2.2
+curves; the specular lobe has kappa ~0.3 and gamma ~20.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewcomp.calib.reference import Method, RuntimeModel
+
+PROJECTOR = np.array([0.0, -0.03, 0.5])
+CAMERA = np.array([0.0, 0.035, 0.5])
+
+
+def planar_geometry(
+    width: int, height: int, fov_y_deg: float = 20.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """(refl, pos) of a projector at PROJECTOR looking at the origin onto the plane z = 0.
+
+    Returns float32 (H, W, 3) unit reflection vectors and surface points (metres); row 0 is
+    the top of the projector image.
+    """
+    fwd = -PROJECTOR / np.linalg.norm(PROJECTOR)
+    right = np.cross(fwd, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    f = 0.5 * height / np.tan(np.radians(fov_y_deg) / 2.0)
+    u = (np.arange(width) + 0.5 - width / 2.0) / f
+    v = (np.arange(height) + 0.5 - height / 2.0) / f
+    d = fwd + u[None, :, None] * right - v[:, None, None] * up
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    t = -PROJECTOR[2] / d[..., 2]
+    pos = PROJECTOR + t[..., None] * d
+    refl = d.copy()
+    refl[..., 2] = -refl[..., 2]  # mirror about the normal (0, 0, 1)
+    return refl.astype(np.float32), pos.astype(np.float32)
+
+
+def _smooth_field(rng: np.random.Generator, h: int, w: int, n: int) -> np.ndarray:
+    """n smooth random fields (H, W, n) in [-1, 1]: sums of a few low-frequency sinusoids."""
+    yy = np.linspace(0.0, 1.0, h, dtype=np.float32)[:, None]
+    xx = np.linspace(0.0, 1.0, w, dtype=np.float32)[None, :]
+    out = np.empty((h, w, n), np.float32)
+    for k in range(n):
+        fx, fy, px, py = rng.uniform([0.5, 0.5, 0, 0], [2.0, 2.0, 2 * np.pi, 2 * np.pi])
+        out[..., k] = 0.5 * np.sin(2 * np.pi * fx * xx + px) + 0.5 * np.sin(
+            2 * np.pi * fy * yy + py
+        )
+    return out
+
+
+def synthetic_model(
+    method: Method = "pixel",
+    width: int = 160,
+    height: int = 96,
+    seed: int = 0,
+    n_inv: int = 1024,
+) -> RuntimeModel:
+    """A random but well-conditioned RuntimeModel of any size for ``pixel`` or ``paper``.
+
+    ``pixel``: per-pixel Ww (diagonal ~0.8, off-diagonal ~0.05), Wc = screen colour
+    (0.9, 0.65, 0.45) times a similar field, ambients ~0.01..0.02, kappa ~0.3, gamma 20,
+    fwd_lut = l^2.2 (per channel exponents 2.1..2.3), inv_lut its inverse on [0, 1].
+    ``paper``: global Ww, Wc_inv, fwd_lut rho_w and inv_lut rho_c^-1 on [0, max rho_c].
+    """
+    rng = np.random.default_rng(seed)
+    refl, pos = planar_geometry(width, height)
+    levels = np.arange(256, dtype=np.float64) / 255.0
+    gam = np.array([2.1, 2.2, 2.3])
+    fwd = (levels[:, None] ** gam[None, :]).astype(np.float32)
+    y = np.linspace(0.0, 1.0, n_inv)[:, None]
+    inv = (y ** (1.0 / gam[None, :])).astype(np.float32)
+    screen = np.array([0.9, 0.65, 0.45], np.float32)
+    common = dict(
+        refl=refl,
+        pos=pos,
+        cam_eye=CAMERA.astype(np.float32),
+        kappa=np.array([0.3, 0.28, 0.32], np.float32),
+        gamma=20.0,
+    )
+    if method == "paper":
+        ww = np.array([[0.85, 0.06, 0.02], [0.05, 0.9, 0.05], [0.02, 0.07, 0.8]], np.float32)
+        wc = (screen[:, None] * ww + 0.02).astype(np.float32)
+        scale = np.array([0.95, 0.8, 0.7])  # rho_c(l) = scale * l^gam
+        return RuntimeModel(
+            method="paper",
+            fwd_lut=fwd,
+            inv_lut=inv,  # (v / scale)^(1/gam) at v = y * scale
+            inv_lo=np.zeros(3, np.float32),
+            inv_hi=scale.astype(np.float32),
+            Ww=ww,
+            Wc_inv=np.linalg.inv(wc.astype(np.float64)).astype(np.float32),
+            Aw=np.zeros((height, width, 3), np.float32),
+            Ac=np.zeros((height, width, 3), np.float32),
+            **common,  # type: ignore[arg-type]
+        )
+    if method != "pixel":
+        raise ValueError(f"method must be 'pixel' or 'paper', got {method!r}")
+    f = _smooth_field(rng, height, width, 18)
+    eye3 = np.eye(3, dtype=np.float32)
+    off = 0.05 + 0.03 * f[..., :9].reshape(height, width, 3, 3)
+    ww = (eye3 * (0.8 + 0.1 * f[..., 9:12])[..., None] + (1 - eye3) * off).astype(np.float32)
+    wc_diag = screen * (0.85 + 0.1 * f[..., 12:15])
+    wc = (eye3 * wc_diag[..., None] + (1 - eye3) * 0.6 * off.transpose(0, 1, 3, 2)).astype(
+        np.float32
+    )
+    aw = (0.015 + 0.005 * f[..., 15:18]).astype(np.float32)
+    ac = (aw * screen).astype(np.float32)
+    return RuntimeModel(
+        method="pixel",
+        fwd_lut=fwd,
+        inv_lut=inv,
+        inv_lo=np.zeros(3, np.float32),
+        inv_hi=np.ones(3, np.float32),
+        Ww=ww,
+        Wc=wc,
+        Aw=aw,
+        Ac=ac,
+        **common,  # type: ignore[arg-type]
+    )
+
+
+def smooth_frame(width: int, height: int, seed: int = 0) -> np.ndarray:
+    """A smooth colourful test frame (H, W, 3) uint8 covering most of 0..255."""
+    rng = np.random.default_rng(seed)
+    f = _smooth_field(rng, height, width, 3)
+    xx = np.linspace(0.0, 1.0, width, dtype=np.float32)[None, :, None]
+    img = 0.5 + 0.35 * f + 0.15 * (xx - 0.5) * 2.0
+    return np.clip(np.rint(255.0 * img), 0, 255).astype(np.uint8)
+
+
+def uniform_frame(
+    width: int, height: int, rgb: tuple[int, int, int] = (128, 96, 160)
+) -> np.ndarray:
+    """A uniform frame (H, W, 3) uint8 of one colour."""
+    return np.broadcast_to(np.array(rgb, np.uint8), (height, width, 3)).copy()
+
+
+def make_test_video(
+    path: str,
+    width: int = 320,
+    height: int = 180,
+    seconds: float = 2.0,
+    rate: int = 25,
+    audio: bool = True,
+    audio_codec: str = "aac",
+    sample_rate: int = 48000,
+    codec: str = "libx264",
+) -> None:
+    """Write a synthetic clip: moving smooth colours and, if ``audio``, a 440 Hz sine tone.
+
+    yuv420p H.264 (ultrafast) at ``rate`` fps for ``seconds``; the audio (mono) lasts as long.
+    """
+    import av  # only the video helpers need PyAV
+
+    from viewcomp.rt.frames import rgb_to_yuv420p
+
+    n = round(seconds * rate)
+    base = smooth_frame(width + n, height, seed=1)
+    with av.open(path, "w") as out:
+        vs = out.add_stream(codec, rate=rate)
+        vs.width, vs.height, vs.pix_fmt = width, height, "yuv420p"
+        if codec == "libx264":
+            vs.options = {"preset": "ultrafast", "crf": "20"}
+        aus = None
+        if audio:
+            aus = out.add_stream(audio_codec, rate=sample_rate)
+            aus.layout = "mono"
+        for i in range(n):
+            planes = rgb_to_yuv420p(np.ascontiguousarray(base[:, i : i + width]), "bt601")
+            frame = av.VideoFrame(width, height, "yuv420p")
+            for plane, arr in zip(frame.planes, (planes.y, planes.u, planes.v), strict=True):
+                view = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
+                view[:, : plane.width] = arr
+            frame.pts = i
+            for packet in vs.encode(frame):
+                out.mux(packet)
+        for packet in vs.encode(None):
+            out.mux(packet)
+        if aus is not None:
+            total = round(seconds * sample_rate)
+            chunk = 1024
+            for start in range(0, total, chunk):
+                k = min(chunk, total - start)
+                t = (np.arange(start, start + k) / sample_rate).astype(np.float32)
+                samples = (0.3 * np.sin(2 * np.pi * 440.0 * t)).astype(np.float32)[None, :]
+                af = av.AudioFrame.from_ndarray(samples, format="fltp", layout="mono")
+                af.sample_rate = sample_rate
+                af.pts = start
+                for packet in aus.encode(af):
+                    out.mux(packet)
+            for packet in aus.encode(None):
+                out.mux(packet)

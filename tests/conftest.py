@@ -1,0 +1,46 @@
+"""Shared fixtures: one headless GL context per session for tests marked ``gl``.
+
+Tests marked ``gl`` are skipped when no OpenGL 3.3 context can be made, unless the
+environment sets ``VIEWCOMP_REQUIRE_GL=1``: then they fail with the reason.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+_GL: dict[str, Any] = {}
+
+
+def _context() -> Any:
+    """The session's context, made on first use; raises GLUnavailable if impossible."""
+    if "ctx" not in _GL and "error" not in _GL:
+        from viewcomp.rt.context import GLUnavailable, create_context
+
+        try:
+            _GL["ctx"] = create_context()
+        except GLUnavailable as exc:
+            _GL["error"] = str(exc)
+    if "error" in _GL:
+        message = f"no OpenGL context: {_GL['error']}"
+        if os.environ.get("VIEWCOMP_REQUIRE_GL") == "1":
+            pytest.fail(message + " (VIEWCOMP_REQUIRE_GL=1)", pytrace=False)
+        pytest.skip(message)
+    return _GL["ctx"]
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    if item.get_closest_marker("gl") is not None:
+        _context()
+
+
+@pytest.fixture(scope="session")
+def gl_ctx() -> Iterator[Any]:
+    """A moderngl standalone EGL context (GL >= 3.3), shared by the session."""
+    ctx = _context()
+    yield ctx
+    ctx.release()
+    _GL.clear()
