@@ -17,18 +17,17 @@ import numpy as np
 
 from .bundle import BundleError, load_bundle, save_bundle
 from .capture import REQUIRED, CaptureSet
+from .compensation import Compensation
 from .errors import FitError
 from .geometry import ScreenGeometry
-from .paper import CHANNEL_PATTERNS, PaperCalibration, PhongFit, calibrate_paper, compensate_paper
+from .paper import CHANNEL_PATTERNS, PaperCalibration, PhongFit, calibrate_paper
 from .pixel import (
     DEFAULT_SMOOTH_PX,
     LobeFit,
     PixelCalibration,
     ScreenModel,
     calibrate_pixel,
-    pixel_tone_map,
 )
-from .reference import compensate
 from .rig import Rig, rig_from_dict, rig_to_toml
 from .tonemap import DEFAULT_LAMBDA, ToneMap
 
@@ -111,23 +110,8 @@ class Calibration:
         Returns:
             (H, W, 3) uint8 for the projector, and the tone map used.
         """
-        if method == "paper":
-            if identity:
-                model = self.paper.runtime_model(eye)
-                return compensate(model, image, eye, 1.0, 0.0, identity=True), ToneMap(
-                    1.0, 0.0, 0.0, 0.0
-                )
-            r = compensate_paper(self.paper, image, eye, lam)
-            return r.image, r.tone
-        if method != "pixel":
-            raise ValueError(f"method must be 'pixel' or 'paper', got {method!r}")
-        model = self.pixel.runtime_model()
-        if identity:
-            return compensate(model, image, eye, 1.0, 0.0, identity=True), ToneMap(
-                1.0, 0.0, 0.0, 0.0
-            )
-        tone = pixel_tone_map(model, image, eye, lam)
-        return compensate(model, image, eye, tone.alpha, tone.beta), tone
+        out, p = Compensation(self, method, lam).compensate_image(image, eye, identity)
+        return out, p.tone
 
     # -- the bundle ------------------------------------------------------------------------
 
@@ -135,22 +119,22 @@ class Calibration:
         """Write the bundle atomically at exactly ``path``."""
         p, x = self.paper, self.pixel
         arrays = {
-            "geometry/pos": p.geometry.pos,
-            "geometry/refl": p.geometry.refl,
-            "paper/n": p.n,
-            "paper/means_c": np.stack([p.means_c[k] for k in (*CHANNEL_PATTERNS, "gray")]),
-            "paper/ramp_cols_c": p.ramp_cols_c,
-            "paper/w_tilde_w": p.w_tilde_w,
-            "paper/rho_w": p.rho_w,
-            "paper/ksis": p.fit.ksis,
-            "paper/gamma": p.fit.gamma,
-            "pixel/f_lut": x.f_lut,
-            "pixel/Ww": x.white.W.astype(np.float32),
-            "pixel/Aw": x.white.A.astype(np.float32),
-            "pixel/Wc": x.screen.W.astype(np.float32),
-            "pixel/Ac": x.screen.A.astype(np.float32),
-            "pixel/kappa": x.lobe.kappa,
-            "pixel/baseline": x.lobe.baseline,
+            "geometry.pos": p.geometry.pos,
+            "geometry.refl": p.geometry.refl,
+            "paper.n": p.n,
+            "paper.means_c": np.stack([p.means_c[k] for k in (*CHANNEL_PATTERNS, "gray")]),
+            "paper.ramp_cols_c": p.ramp_cols_c,
+            "paper.w_tilde_w": p.w_tilde_w,
+            "paper.rho_w": p.rho_w,
+            "paper.ksis": p.fit.ksis,
+            "paper.gamma": p.fit.gamma,
+            "pixel.f_lut": x.f_lut,
+            "pixel.Ww": x.white.W.astype(np.float32),
+            "pixel.Aw": x.white.A.astype(np.float32),
+            "pixel.Wc": x.screen.W.astype(np.float32),
+            "pixel.Ac": x.screen.A.astype(np.float32),
+            "pixel.kappa": x.lobe.kappa,
+            "pixel.baseline": x.lobe.baseline,
         }
         meta = {
             "rig": rig_to_toml(self.rig),
@@ -188,35 +172,35 @@ class Calibration:
         try:
             rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
             g = ScreenGeometry(
-                pos=arrays["geometry/pos"],
-                refl=arrays["geometry/refl"],
+                pos=arrays["geometry.pos"],
+                refl=arrays["geometry.refl"],
                 projector=np.asarray(meta["geometry"]["projector"], np.float64),
                 camera=np.asarray(meta["geometry"]["camera"], np.float64),
             )
             pf = meta["paper_fit"]
             fit = PhongFit(
-                ksis=arrays["paper/ksis"],
-                gamma=arrays["paper/gamma"],
+                ksis=arrays["paper.ksis"],
+                gamma=arrays["paper.gamma"],
                 rms=np.asarray(pf["rms_log"]),
                 r2=np.asarray(pf["r2"]),
                 samples=int(pf["samples"]),
                 mode=str(pf["mode"]),
             )
-            means = arrays["paper/means_c"]
+            means = arrays["paper.means_c"]
             paper = PaperCalibration(
                 geometry=g,
-                n=arrays["paper/n"],
+                n=arrays["paper.n"],
                 fit=fit,
                 means_c={k: means[i] for i, k in enumerate((*CHANNEL_PATTERNS, "gray"))},
-                ramp_cols_c=arrays["paper/ramp_cols_c"],
-                w_tilde_w=arrays["paper/w_tilde_w"],
-                rho_w=arrays["paper/rho_w"],
+                ramp_cols_c=arrays["paper.ramp_cols_c"],
+                w_tilde_w=arrays["paper.w_tilde_w"],
+                rho_w=arrays["paper.rho_w"],
                 rv90=g.rv(g.camera),
             )
             xf = meta["pixel_fit"]
             lobe = LobeFit(
-                baseline=arrays["pixel/baseline"],
-                kappa=arrays["pixel/kappa"],
+                baseline=arrays["pixel.baseline"],
+                kappa=arrays["pixel.kappa"],
                 gamma=float(xf["gamma"]),
                 rms=np.asarray(xf["rms"]),
                 rms_power_law=np.asarray(xf["rms_power_law"]),
@@ -226,9 +210,9 @@ class Calibration:
             measured = bool(xf["ambient_measured"])
             pixel = PixelCalibration(
                 geometry=g,
-                f_lut=arrays["pixel/f_lut"],
-                white=ScreenModel(arrays["pixel/Ww"], arrays["pixel/Aw"], measured),
-                screen=ScreenModel(arrays["pixel/Wc"], arrays["pixel/Ac"], measured),
+                f_lut=arrays["pixel.f_lut"],
+                white=ScreenModel(arrays["pixel.Ww"], arrays["pixel.Aw"], measured),
+                screen=ScreenModel(arrays["pixel.Wc"], arrays["pixel.Ac"], measured),
                 lobe=lobe,
                 response_rms=float(xf["response_rms"]),
             )

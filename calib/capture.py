@@ -294,3 +294,26 @@ def write_capture_set(
             for s in IMAGE_SUFFIXES:
                 (folder / f"{name}{s}").unlink(missing_ok=True)
     return written
+
+
+def capture_set_from_raw(
+    rig: Rig,
+    white: Mapping[str, np.ndarray],
+    screen: Mapping[str, np.ndarray],
+    path: str | Path = "<memory>",
+) -> CaptureSet:
+    """A CaptureSet from raw images in memory (as `read_capture_set` would load them).
+
+    ``white`` and ``screen`` map names to encoded uint8/uint16 (H, W, 3) camera images (or
+    float32 linear); they are linearised with the rig's camera response.
+    """
+    _check_images("white", white)
+    _check_images("screen", screen)
+    response = rig.camera.response_curve()
+    lin: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
+    top: dict[tuple[str, str], float] = {}
+    for sub, images in (("white", white), ("screen", screen)):
+        for name, raw in images.items():
+            lin[sub][name] = to_linear(np.asarray(raw), response)
+            top[(sub, name)] = max_code_fraction(np.asarray(raw))
+    return CaptureSet(rig, lin["white"], lin["screen"], top, Path(path))

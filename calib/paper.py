@@ -14,8 +14,7 @@ from scipy.optimize import isotonic_regression
 from .errors import FitError
 from .geometry import ScreenGeometry
 from .patterns import ramp_levels
-from .reference import RuntimeModel, compensate, white_response
-from .tonemap import DEFAULT_LAMBDA, ToneMap, choose_tone_map, thumbnail_step
+from .reference import RuntimeModel
 
 GRAY_LEVEL = 110.0
 CHANNEL_PATTERNS = ("red", "green", "blue")
@@ -62,9 +61,11 @@ class PhongFit:
     mode: str
 
     def predict(self, rv: np.ndarray) -> np.ndarray:
-        """k_s i_s max(R.V, 0)^gamma: (H, W) -> (H, W, 3)."""
-        c = np.maximum(rv, 0.0)[..., None]
-        return self.ksis * c**self.gamma
+        """k_s i_s (R.V)^gamma where R.V > 0, else 0: (H, W) -> (H, W, 3)."""
+        c = rv[..., None]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            v = self.ksis * np.where(c > 0, c, 1.0) ** self.gamma
+        return np.where(c > 0, v, 0.0)
 
 
 def camera_row(geometry: ScreenGeometry) -> int:
@@ -194,7 +195,7 @@ def inverse_lut(lut: np.ndarray, size: int = INV_LUT_SIZE) -> tuple[np.ndarray, 
     return inv, lo, hi
 
 
-def regress_rho(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
+def regress_rho(samples: np.ndarray, name: str = "ramp", strict: bool = True) -> np.ndarray:
     """rho(I) = a + b (I/255)^g per channel, least squares on per-level samples (Eq. 20).
 
     A parametric regression, as the paper's "regression of L~_S": the projector's response
@@ -204,12 +205,15 @@ def regress_rho(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
 
     Args:
         samples: (256, 3) mean decoupled value per level.
+        name: the capture, for error messages.
+        strict: refuse a flat, decreasing or badly fitting ramp (captures); predicted ramps
+            (Eq. 10 at another eye) are regressed whatever they look like.
 
     Returns:
         (256, 3) strictly increasing curve.
 
     Raises:
-        FitError: a ramp that is flat or decreasing, or that no such curve fits.
+        FitError: (strict) a ramp that is flat or decreasing, or that no such curve fits.
     """
     from scipy.optimize import curve_fit
 
@@ -218,7 +222,7 @@ def regress_rho(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
     for ch in range(3):
         y = samples[:, ch]
         span = float(y[-16:].mean() - y[:16].mean())
-        if span <= 1e-4:
+        if strict and span <= 1e-4:
             raise FitError(
                 name,
                 f"the ramp is flat or decreasing in channel {'RGB'[ch]}: project ramp.png "
@@ -233,14 +237,17 @@ def regress_rho(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
                 curve,
                 x,
                 y,
-                p0=(float(y[0]), span, 2.0),
+                p0=(float(y[0]), max(span, 1e-3), 2.0),
                 bounds=([-np.inf, 1e-9, 0.2], [np.inf, np.inf, 8.0]),
             )
         except RuntimeError as e:
-            raise FitError(name, f"no response curve fits channel {'RGB'[ch]}: {e}") from e
+            if strict:
+                raise FitError(name, f"no response curve fits channel {'RGB'[ch]}: {e}") from e
+            # A predicted ramp that no response fits: the flattest increasing curve.
+            p = (float(y.mean()), 1e-6, 1.0)
         fit = curve(x, *p)
         misfit = float(np.sqrt(np.mean((y - fit) ** 2)))
-        if misfit > 0.25 * span:
+        if strict and misfit > 0.25 * span:
             raise FitError(
                 name,
                 f"the ramp is not monotone in channel {'RGB'[ch]} (misfit {misfit / span:.0%} "
@@ -250,10 +257,12 @@ def regress_rho(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
     return out
 
 
-def decoupled_ramp_lut(ramp_colmeans: np.ndarray, w_tilde: np.ndarray, name: str) -> np.ndarray:
+def decoupled_ramp_lut(
+    ramp_colmeans: np.ndarray, w_tilde: np.ndarray, name: str, strict: bool = True
+) -> np.ndarray:
     """rho: C~ = W~^-1 L_S regressed per level (Eq. 20). (W, 3) column means -> (256, 3)."""
     dec = ramp_colmeans @ np.linalg.inv(w_tilde).T
-    return regress_rho(level_means(dec), name)
+    return regress_rho(level_means(dec), name, strict)
 
 
 # -- the calibration and its prediction at another eye (steps 3, 5, 6, 7) -------------------
@@ -292,7 +301,7 @@ class PaperCalibration:
         means = {k: v + shift for k, v in self.means_c.items()}
         w_tilde = mixing_from_means(means)
         ramp = self.ramp_cols_c + ds.mean(axis=0)
-        return w_tilde, decoupled_ramp_lut(ramp, w_tilde, "screen/ramp")
+        return w_tilde, decoupled_ramp_lut(ramp, w_tilde, "screen/ramp (predicted)", False)
 
     def runtime_model(self, eye: np.ndarray, gain: np.ndarray | None = None) -> RuntimeModel:
         """The paper method's runtime model at ``eye`` (global matrices and LUTs)."""
@@ -333,69 +342,16 @@ def calibrate_paper(
     means_w = {k: white[k].reshape(-1, 3).mean(axis=0) for k in (*CHANNEL_PATTERNS, "gray")}
     w_tilde_w = mixing_from_means(means_w)
     rho_w = decoupled_ramp_lut(white["ramp"].mean(axis=0), w_tilde_w, "white/ramp")
+    means_c = {k: screen[k].reshape(-1, 3).mean(axis=0) for k in (*CHANNEL_PATTERNS, "gray")}
+    # The captured ramp itself must make a response curve (checked here, strictly).
+    decoupled_ramp_lut(screen["ramp"].mean(axis=0), mixing_from_means(means_c), "screen/ramp")
     return PaperCalibration(
         geometry=geometry,
         n=n,
         fit=fit,
-        means_c={k: screen[k].reshape(-1, 3).mean(axis=0) for k in (*CHANNEL_PATTERNS, "gray")},
+        means_c=means_c,
         ramp_cols_c=screen["ramp"].mean(axis=0),
         w_tilde_w=w_tilde_w,
         rho_w=rho_w,
         rv90=rv90,
     )
-
-
-def paper_tone_map(
-    model: RuntimeModel, image: np.ndarray, lam: float = DEFAULT_LAMBDA, step: int | None = None
-) -> ToneMap:
-    """Eq. 22 for the paper's method, exactly (mu = 0), on a thumbnail of ``image``.
-
-    Bounds: rho_c(0) <= W~_c^-1 (alpha C_w + beta) <= rho_c(255) per channel.
-    """
-    s = thumbnail_step(image.shape) if step is None else step
-    cw = white_response(model.subsample(s), image[::s, ::s])
-    u = cw @ model.Wc_inv.T
-    v = np.broadcast_to(model.Wc_inv @ np.ones(3), u.shape)
-    return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, lam, beta_weight=0.0)
-
-
-@dataclass(frozen=True)
-class PaperResult:
-    """A compensated image and how it was made: tone map and feedback gains per iteration."""
-
-    image: np.ndarray
-    tone: ToneMap
-    gains: list[np.ndarray]
-
-
-def compensate_paper(
-    cal: PaperCalibration,
-    image: np.ndarray,
-    eye: np.ndarray,
-    lam: float = DEFAULT_LAMBDA,
-    feedback: int = 3,
-) -> PaperResult:
-    """Steps 3, 5, 6 and 7: I_c for a test image I_w seen from ``eye``.
-
-    Args:
-        cal: the paper calibration.
-        image: I_w, (H, W, 3) uint8 on the projector grid.
-        eye: (3,) metres.
-        lam: the tone map's lambda.
-        feedback: iterations of Eq. 25 (the paper: 3).
-
-    Returns:
-        PaperResult with I_c (H, W, 3) uint8.
-    """
-    gain = np.ones(3)
-    gains = [gain]
-    model = cal.runtime_model(eye, gain)
-    tone = paper_tone_map(model, image, lam)
-    out = compensate(model, image, eye, tone.alpha, tone.beta)
-    for _ in range(feedback):
-        gain = out.reshape(-1, 3).mean(axis=0) / GRAY_LEVEL
-        gains.append(gain)
-        model = cal.runtime_model(eye, gain)
-        tone = paper_tone_map(model, image, lam)
-        out = compensate(model, image, eye, tone.alpha, tone.beta)
-    return PaperResult(out, tone, gains)

@@ -38,8 +38,7 @@ from .paper import (
     level_means,
     monotone_lut,
 )
-from .reference import RuntimeModel, lobe_change, white_response
-from .tonemap import DEFAULT_LAMBDA, ToneMap, choose_tone_map, thumbnail_step
+from .reference import RuntimeModel
 
 DEFAULT_SMOOTH_PX = 3.0
 
@@ -266,32 +265,3 @@ def calibrate_pixel(
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
     lobe = fit_lobe(s, geometry.rv(geometry.camera))
     return PixelCalibration(geometry, f_lut, wm, cm, lobe, misfit)
-
-
-# -- compensation --------------------------------------------------------------------------
-
-
-def pixel_tone_map(
-    model: RuntimeModel,
-    image: np.ndarray,
-    eye: np.ndarray,
-    lam: float = DEFAULT_LAMBDA,
-    beta_weight: float | None = None,
-    step: int | None = None,
-) -> ToneMap:
-    """Eq. 22 per pixel: 0 <= M(x)^-1 (alpha C_w + beta - A_c) <= 1 on a thumbnail.
-
-    ``beta_weight`` (mu) defaults to ``lam``; see ``viewcomp.calib.tonemap``.
-    """
-    s = thumbnail_step(image.shape) if step is None else step
-    small = model.subsample(s)
-    thumb = image[::s, ::s]
-    cw = white_response(small, thumb).astype(np.float64)
-    ds = lobe_change(small, eye).astype(np.float64)
-    m_inv = np.linalg.inv(small.Wc + ds[..., :, None] * small.Ww)
-    u = np.einsum("hwij,hwj->hwi", m_inv, cw)
-    v = m_inv.sum(axis=-1)
-    c = -np.einsum("hwij,hwj->hwi", m_inv, small.Ac)
-    mu = lam if beta_weight is None else beta_weight
-    scale = max(float(cw.mean()), 1e-4)
-    return choose_tone_map(u, v, c, 0.0, 1.0, lam, beta_weight=mu, beta_scale=scale)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 DEFAULT_LAMBDA = 1.0
+DEFAULT_BETA_WEIGHT = 1.0
 ALPHA_STEP = 0.01
 ALPHA_MIN = 0.1
 THUMB_PIXELS = 4096

@@ -1,0 +1,92 @@
+"""The `viewcomp` command line: one sub-command per module in ``viewcomp.commands``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from viewcomp import __version__
+
+# Order as shown in --help; each module has register(subparsers) and its run functions.
+COMMANDS = (
+    "patterns",
+    "simulate",
+    "calibrate",
+    "render",
+    "evaluate",
+    "demo",
+)
+
+DESCRIPTION = """\
+View-dependent compensation for projectors on coloured and glossy surfaces.
+
+A typical session:
+  viewcomp patterns pats --size 1280x720      patterns to project (or use `capture`)
+  viewcomp simulate caps                      ... or simulated captures, no hardware
+  viewcomp calibrate caps -o screen.vcb       captures -> calibration bundle
+  viewcomp render screen.vcb in.mp4 -o out.mp4 --angle 60
+  viewcomp evaluate -o report                 the paper's Section 5, in simulation
+  viewcomp demo                               all of the above on a built-in example
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser (sub-commands registered from their modules)."""
+    parser = argparse.ArgumentParser(
+        prog="viewcomp",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"viewcomp {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMANDS:
+        importlib.import_module(f"viewcomp.commands.{name.replace('-', '_')}").register(sub)
+    return parser
+
+
+def _known_errors() -> tuple[type[BaseException], ...]:
+    """Errors that carry a message for the user (cause and fix): no traceback for these."""
+    from viewcomp.calib.bundle import BundleError
+    from viewcomp.calib.errors import FitError
+    from viewcomp.calib.geometry import GeometryError
+    from viewcomp.calib.imageio import CaptureError
+    from viewcomp.calib.rig import RigError
+    from viewcomp.calib.simulator import SimulatorError
+
+    errors: list[type[BaseException]] = [
+        BundleError, FitError, GeometryError, CaptureError, RigError, SimulatorError,
+    ]  # fmt: skip
+    try:
+        from viewcomp.rt.context import GLUnavailable
+        from viewcomp.rt.pipeline import ImageError
+        from viewcomp.rt.tracks import TrackError
+        from viewcomp.rt.video import VideoError
+
+        errors += [GLUnavailable, ImageError, TrackError, VideoError]
+    except ImportError:  # the run-time part is optional for calibration-only installs
+        pass
+    return tuple(errors)
+
+
+class UsageError(Exception):
+    """A command-line value that is wrong: the message says which and what is expected."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 2 a user error)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except UsageError as e:
+        parser.exit(2, f"viewcomp {args.command}: error: {e}\n")
+    except _known_errors() as e:
+        print(f"viewcomp {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"viewcomp {args.command}: interrupted", file=sys.stderr)
+        return 130
+    return 0

@@ -1,0 +1,1 @@
+"""One module per `viewcomp` sub-command: each has ``register(subparsers)``."""
