@@ -33,6 +33,7 @@ from .capture import capture_set_from_raw
 from .compensation import Compensation, sample_grid, thumbnail
 from .geometry import eye_from_angle
 from .metrics import delta_e2000, psnr, sse, ssim
+from .simcamera import SimCamera
 from .simulate import capture_patterns, simulation_rig
 from .simulator import Screen, Simulator, make_screen, white_screen
 from .testimages import natural_images, uniform
@@ -68,6 +69,8 @@ class World:
     gloss: str | tuple[float, float]
     lam: float
     mu: float
+    space: str = "projector"  # "camera": captures seen by the simulated camera, rectified
+    camera: SimCamera | None = None  # the simulated camera, for space = "camera"
 
     @classmethod
     def make(
@@ -78,8 +81,15 @@ class World:
         mu: float = DEFAULT_BETA_WEIGHT,
         size: tuple[int, int] | None = None,
         projector_fov: float | None = None,
+        space: str = "projector",
     ) -> World:
-        """The evaluation world on the simulation rig (optionally another size or fov)."""
+        """The evaluation world on the simulation rig (optionally another size or fov).
+
+        ``space = "camera"``: every case's captures are what the simulated camera sees (lens,
+        pose, blur, surround; chessboard and Gray code included) and `calibrate` rectifies
+        them, as for a real camera; with ``size`` the camera's resolution scales with the
+        projector's. The eye that judges the results is the same in both spaces.
+        """
         from dataclasses import replace
 
         rig = simulation_rig()
@@ -89,6 +99,15 @@ class World:
         if projector_fov is not None:
             proj = replace(proj, fov_y=projector_fov)
         rig = replace(rig, projector=proj)
+        if space == "camera":
+            from .simcamera import capture_camera_patterns, scaled_camera_rig
+
+            sim = Simulator(rig=scaled_camera_rig(rig, size), seed=seed)
+            cam = SimCamera(sim)
+            white = capture_camera_patterns(cam, white_screen(), geometric="chessboard")
+            return cls(sim, white, gloss, lam, mu, space, cam)
+        if space != "projector":
+            raise ValueError(f'space must be "projector" or "camera", got {space!r}')
         sim = Simulator(rig=rig, seed=seed)
         return cls(sim, capture_patterns(sim, white_screen()), gloss, lam, mu)
 
@@ -105,8 +124,15 @@ class World:
     def case(self, name: str) -> Case:
         """Simulate, capture and calibrate one screen."""
         screen = make_screen(name, self.gloss, shape=self.shape, seed=self.sim.seed)
-        raw = capture_patterns(self.sim, screen)
-        cal = calibrate(capture_set_from_raw(self.sim.rig, self.white_raw, raw))
+        if self.camera is not None:
+            from .simcamera import capture_camera_patterns, written_rig
+
+            raw = capture_camera_patterns(self.camera, screen)
+            rig = written_rig(self.sim.rig)  # the lens is for calibrate to estimate
+            cal = calibrate(capture_set_from_raw(rig, self.white_raw, raw))
+        else:
+            raw = capture_patterns(self.sim, screen)
+            cal = calibrate(capture_set_from_raw(self.sim.rig, self.white_raw, raw))
         return Case(
             name,
             screen,

@@ -116,18 +116,31 @@ def fit_phong(s90: np.ndarray, rv90: np.ndarray, mode: str = "all", row: int = 0
 # -- step 4: Grossberg's model (Eqs. 11-20, Eq. 16 with the errata) -------------------------
 
 
-def mixing_from_means(means: dict[str, np.ndarray]) -> np.ndarray:
+def mixing_from_means(means: dict[str, np.ndarray], check_order: bool = True) -> np.ndarray:
     """W~[i][j] = {dL_j}_i / {dL_j}_j with dL_j = mean(L_j) - mean(L_U) (Eq. 16, corrected).
 
     Args:
         means: "red", "green", "blue", "gray" -> (3,) mean linear capture.
 
+        check_order: refuse captures whose colour patterns look swapped (for captured means;
+            predicted means at another eye are not captures).
+
     Returns:
         (3, 3) W~ with ones on the diagonal; column j is normalised by its own diagonal entry.
     """
     w = np.empty((3, 3))
+    gray = np.asarray(means["gray"], np.float64)
     for j, name in enumerate(CHANNEL_PATTERNS):
-        d = np.asarray(means[name], np.float64) - np.asarray(means["gray"], np.float64)
+        d = np.asarray(means[name], np.float64) - gray
+        # Relative to gray, a pattern raises its own channel most, whatever the screen's
+        # colour (the albedo cancels in d / gray): otherwise the captures are mixed up.
+        if check_order and d[j] > 1e-6 and int(np.argmax(d / np.maximum(gray, 1e-9))) != j:
+            raise FitError(
+                name,
+                f"raises channel {'RGB'[int(np.argmax(d / np.maximum(gray, 1e-9)))]} more "
+                f"than {'RGB'[j]}: the captures look swapped - check that {name}.png was "
+                f"captured while the {name} pattern was projected",
+            )
         if d[j] <= 1e-6:
             raise FitError(
                 name,
@@ -299,7 +312,7 @@ class PaperCalibration:
         ds = self.delta_s(eye, g)
         shift = ds.reshape(-1, 3).mean(axis=0)
         means = {k: v + shift for k, v in self.means_c.items()}
-        w_tilde = mixing_from_means(means)
+        w_tilde = mixing_from_means(means, check_order=False)
         ramp = self.ramp_cols_c + ds.mean(axis=0)
         return w_tilde, decoupled_ramp_lut(ramp, w_tilde, "screen/ramp (predicted)", False)
 

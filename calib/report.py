@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .imageio import atomic_open, write_png
-from .paper import specular_map
 
 if TYPE_CHECKING:
     from .evaluate import World
@@ -41,53 +40,63 @@ def _save(fig: Any, path: Path) -> None:
 
 
 def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, Any]:
-    """log s against log R.V with the paper's power law and the baseline + lobe fit."""
+    """log s against log R.V, with the paper's power law and the baseline + lobe fit.
+
+    The samples are s = (L_c,U - A_c) / (L_w,U - A_w) over its maximum (gray captures,
+    black captures removed), and both fits are made on these very samples.
+    """
+    from .paper import fit_phong
+    from .pixel import fit_lobe
+    from .simulate import capture_patterns
+    from .simulator import white_screen
+
     plt = _plt()
     case = world.case(screen)
     g = case.cal.paper.geometry
     rv = g.rv(g.camera)
-    s90, _ = specular_map(_lin(world, case, "screen"), _lin(world, case, "white"))
-    fit = case.cal.paper.fit
-    lobe = case.cal.pixel.lobe
+    dec = world.sim.response.decode
+
+    def lin(scr: Any) -> dict[str, np.ndarray]:
+        raw = capture_patterns(world.sim, scr)
+        return {k: dec(raw[k].astype(np.float32) / 255.0).astype(np.float64) for k in raw}
+
+    c, w = lin(case.screen), lin(white_screen())
+    s = (c["gray"] - c["black"]) / np.maximum(w["gray"] - w["black"], 1e-6)
+    top = s.reshape(-1, 3).max(axis=0)
+    power = fit_phong(s / top, rv, "all")
+    lobe = fit_lobe(s, rv)
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     sel = (slice(None, None, 4), slice(None, None, 4))
-    x = np.log(np.maximum(rv[sel], 1e-6)).ravel()
+    ok = rv[sel] > 0
+    x = np.log(rv[sel][ok])
     xs = np.linspace(x.min(), 0, 200)
     for ch, ax in enumerate(axes):
-        y = np.log(np.maximum(s90[sel][..., ch], 1e-6)).ravel()
-        ax.plot(x, y, ".", ms=1, alpha=0.3, color="0.4", label="S_90 samples")
-        ax.plot(xs, np.log(fit.ksis[ch]) + fit.gamma[ch] * xs, "r-", label="paper: power law")
-        # The per-pixel fit is of s = (L_c - A_c)/(L_w - A_w); S_90 is that over its maximum.
-        top = lobe.baseline[ch] + lobe.kappa[ch]
-        yl = np.log((lobe.baseline[ch] + lobe.kappa[ch] * np.exp(lobe.gamma * xs)) / top)
-        ax.plot(xs, yl, "b-", label="baseline + lobe")
+        y = np.log(np.maximum(s[sel][ok][:, ch] / top[ch], 1e-6))
+        ax.plot(x, y, ".", ms=1, alpha=0.3, color="0.4", label="s samples")
+        ax.plot(xs, np.log(power.ksis[ch]) + power.gamma[ch] * xs, "r-",
+                label=f"paper: power law (gamma {power.gamma[ch]:.1f})")  # fmt: skip
+        yl = lobe.baseline[ch] + lobe.kappa[ch] * np.exp(lobe.gamma * xs)
+        ax.plot(xs, np.log(yl / top[ch]), "b-",
+                label=f"baseline + lobe (gamma {lobe.gamma:.1f})")  # fmt: skip
         ax.set_title(f"{screen} screen, channel {'RGB'[ch]}")
         ax.set_xlabel("log R.V")
+        ax.legend(loc="lower right", fontsize=7)
         if ch == 0:
-            ax.set_ylabel("log S_90")
-            ax.legend(loc="lower right", fontsize=7)
+            ax.set_ylabel("log s (relative to its maximum)")
     _save(fig, path)
     plt.close(fig)
     return {
         "screen": screen,
-        "paper_rms_log": fit.rms.tolist(),
-        "paper_gamma": fit.gamma.tolist(),
+        "power_law_gamma": power.gamma.tolist(),
+        "power_law_rms_log": power.rms.tolist(),
+        "power_law_rms": lobe.rms_power_law.tolist(),
         "lobe_rms": lobe.rms.tolist(),
-        "power_law_rms_same_samples": lobe.rms_power_law.tolist(),
         "lobe_gamma": lobe.gamma,
         "lobe_kappa": lobe.kappa.tolist(),
-        "true_k_s_shininess": [case.screen.k_s, case.screen.shininess],
+        "lobe_baseline": lobe.baseline.tolist(),
+        "true_kappa_gamma": [case.screen.k_s / 0.85, case.screen.shininess],
+        "note": "rms in units of s (both fits on the same samples); rms_log in log units",
     }
-
-
-def _lin(world: World, case: Any, sub: str) -> np.ndarray:
-    """The gray capture of ``sub`` re-made for the plot (same seed, same noise)."""
-    from .simulate import capture_patterns
-    from .simulator import white_screen
-
-    scr = white_screen() if sub == "white" else case.screen
-    raw = capture_patterns(world.sim, scr)["gray"]
-    return world.sim.response.decode(raw.astype(np.float32) / 255.0).astype(np.float64)
 
 
 def plot_sweep(means: dict[str, dict[str, float]], path: Path) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from viewcomp.commands._common import parse_rgb
+from viewcomp.commands._common import parse_rgb, parse_size
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,17 +35,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(default: projector)",
     )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument(
+        "--size", default=None, help="projector resolution WxH (default 640x320, the paper's)"
+    )
     p.add_argument("--no-black", action="store_true", help="leave out the optional black captures")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.calib.simulate import simulate_capture_set
+    from viewcomp.calib.simulate import simulate_capture_set, simulation_rig
     from viewcomp.calib.simulator import SCREEN_COLOURS
 
+    from dataclasses import replace
+
     screen = args.screen if args.screen in SCREEN_COLOURS else parse_rgb(args.screen)
+    rig = simulation_rig()
+    if args.size:
+        w, h = parse_size(args.size)
+        rig = replace(rig, projector=replace(rig.projector, resolution=(w, h)))
     paths = simulate_capture_set(
-        args.out_dir, screen, args.gloss, args.space, args.seed, black=not args.no_black
+        args.out_dir, screen, args.gloss, args.space, args.seed, rig=rig, black=not args.no_black
     )
     print(
         f"wrote a simulated capture set ({len(paths)} files, {args.space} space) to {args.out_dir}"

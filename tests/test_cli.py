@@ -1,0 +1,120 @@
+"""The commands end to end on small sizes, and their error messages."""
+
+import json
+
+import numpy as np
+import pytest
+
+from viewcomp.calib.imageio import read_image, write_png
+from viewcomp.cli import COMMANDS, main
+
+SIZE = "96x48"
+
+
+@pytest.fixture(scope="module")
+def calib(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    assert main(["simulate", str(d / "caps"), "--size", SIZE, "--screen", "red"]) == 0
+    assert main(["calibrate", str(d / "caps"), "-o", str(d / "red.vcb")]) == 0
+    return d
+
+
+def test_help_of_every_command(capsys):
+    for name in COMMANDS:
+        with pytest.raises(SystemExit) as e:
+            main([name, "--help"])
+        assert e.value.code == 0
+        assert "usage: viewcomp" in capsys.readouterr().out
+
+
+def test_patterns_writes_table1(tmp_path):
+    assert main(["patterns", str(tmp_path), "--size", "64x32"]) == 0
+    ramp = read_image(tmp_path / "ramp.png")
+    assert ramp.shape == (32, 64, 3) and ramp[0, 0, 0] == 0 and ramp[0, -1, 0] == 255
+    np.testing.assert_array_equal(read_image(tmp_path / "red.png")[0, 0], [130, 110, 110])
+
+
+def test_calibrate_prints_fit_quality(calib, tmp_path, capsys):
+    assert main(["calibrate", str(calib / "caps"), "-o", str(tmp_path / "b.vcb")]) == 0
+    out = capsys.readouterr().out
+    assert "per-pixel" in out and "rms" in out and "R^2" in out
+
+
+def test_render_cpu_image_and_identity(calib, tmp_path):
+    src = tmp_path / "in.png"
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (48, 96, 3), dtype=np.uint8)
+    write_png(src, img)
+    bundle = str(calib / "red.vcb")
+    out = tmp_path / "out.png"
+    assert main(["render", bundle, str(src), "-o", str(out), "--angle", "60", "--backend",
+                 "cpu", "--quiet"]) == 0  # fmt: skip
+    comp = read_image(out)
+    assert comp.shape == (48, 96, 3) and comp.dtype == np.uint8
+    assert np.abs(comp.astype(int) - img).mean() > 5  # it did compensate
+    ident = tmp_path / "ident.png"
+    assert main(["render", bundle, str(src), "-o", str(ident), "--eye", "0.1,0.0,0.5",
+                 "--backend", "cpu", "--identity", "--quiet"]) == 0  # fmt: skip
+    np.testing.assert_array_equal(read_image(ident), img)
+
+
+def test_render_letterboxes_another_size(calib, tmp_path):
+    src = tmp_path / "square.png"
+    write_png(src, np.full((60, 60, 3), 200, np.uint8))
+    out = tmp_path / "out.png"
+    assert main(["render", str(calib / "red.vcb"), str(src), "-o", str(out), "--angle", "90",
+                 "--backend", "cpu", "--identity", "--quiet"]) == 0  # fmt: skip
+    res = read_image(out)
+    assert res.shape == (48, 96, 3)
+    assert res[24, 48].tolist() == [200, 200, 200] and res[24, 2].tolist() == [0, 0, 0]
+
+
+def test_errors_name_the_cause_without_traceback(calib, tmp_path, capsys):
+    assert main(["calibrate", str(tmp_path / "nowhere"), "-o", str(tmp_path / "x.vcb")]) == 2
+    err = capsys.readouterr().err
+    assert "nowhere" in err and "Traceback" not in err
+    bad = tmp_path / "bad.vcb"
+    data = (calib / "red.vcb").read_bytes()
+    bad.write_bytes(data[: len(data) // 3])
+    src = tmp_path / "in.png"
+    write_png(src, np.zeros((48, 96, 3), np.uint8))
+    out = tmp_path / "out.png"
+    assert main(["render", str(bad), str(src), "-o", str(out), "--angle", "60",
+                 "--backend", "cpu", "--quiet"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "bad.vcb" in err and "viewcomp calibrate" in err and "Traceback" not in err
+    assert not out.exists()
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(calib / "red.vcb"), str(src), "-o", str(out), "--eye", "1,2"])
+    assert e.value.code == 2
+    assert "X,Y,Z" in capsys.readouterr().err
+
+
+def test_evaluate_table2_report(tmp_path):
+    assert main(["evaluate", "-o", str(tmp_path), "--protocol", "table2", "--size", "64x32",
+                 "--quiet"]) == 0  # fmt: skip
+    rep = json.loads((tmp_path / "report.json").read_text())
+    rows = rep["table2"]
+    assert len(rows) == 18
+    keys = {"original", "paper_90", "paper_theta", "pixel_90", "pixel_theta", "oracle"}
+    for r in rows:
+        assert set(r) >= {"screen", "image", "seen_at", "sse"}
+        assert keys <= set(r["sse"]) and r["screen"] in ("red", "green", "blue")
+        assert r["seen_at"] in (60, 90) and len(r["image"]) == 3
+        theta = f"paper_{r['seen_at']}"
+        assert r["sse"]["paper_theta"] == r["sse"][theta]
+    for f in ("report.md", "phong_fit.png", "tonemap_tradeoff.png"):
+        assert (tmp_path / f).stat().st_size > 0
+
+
+def test_sweep_rows_and_checks():
+    from viewcomp.calib.evaluate import World, check_sweep, sweep, sweep_means
+    from viewcomp.calib.testimages import natural_images
+
+    world = World.make(size=(64, 32))
+    imgs = dict(list(natural_images(64, 32).items())[:1])
+    rows = sweep(world, screens=("red",), angles=(60, 90), images=imgs)
+    assert len(rows) == 2 and all(set(r["de"]) >= {"oracle", "pixel_theta"} for r in rows)
+    means = sweep_means(rows)
+    checks = check_sweep(means)
+    assert set(checks["off90_pixel_theta_le_both_90"]) == {"60"}

@@ -1,0 +1,199 @@
+"""Each math step against closed forms and round trips (MODEL.md sections 2-4)."""
+
+import numpy as np
+import pytest
+
+from viewcomp.calib.errors import FitError
+from viewcomp.calib.geometry import ScreenGeometry, eye_from_angle, reflection_vectors
+from viewcomp.calib.paper import (
+    fit_phong,
+    inverse_lut,
+    level_means,
+    mixing_from_means,
+    regress_rho,
+    specular_map,
+)
+from viewcomp.calib.pixel import fit_lobe
+from viewcomp.calib.reference import lut_forward, lut_inverse
+from viewcomp.calib.simulate import simulation_rig
+from viewcomp.calib.tonemap import ToneSmoother, choose_tone_map
+
+W_TRUE = np.array([[0.70, 0.08, 0.02], [0.06, 0.18, 0.05], [0.01, 0.07, 0.55]])
+
+
+def _f(level: float) -> np.ndarray:
+    return np.full(3, (level / 255.0) ** 2.2)
+
+
+def _means_from_w(w: np.ndarray, ambient: np.ndarray) -> dict[str, np.ndarray]:
+    """Mean captures of Table 1's patterns for C = W f(I) + A (one projector gamma)."""
+    out = {}
+    for j, name in enumerate(("red", "green", "blue")):
+        p = _f(110.0)
+        p[j] = _f(130.0)[j]
+        out[name] = w @ p + ambient
+    out["gray"] = w @ _f(110.0) + ambient
+    return out
+
+
+def test_eq16_with_errata_recovers_column_normalised_w():
+    means = _means_from_w(W_TRUE, np.array([0.01, 0.02, 0.015]))
+    wt = mixing_from_means(means)
+    expected = W_TRUE / np.diag(W_TRUE)[None, :]  # W~ = W D^-1: columns over their diagonal
+    np.testing.assert_allclose(wt, expected, rtol=1e-12)
+    # The printed Eq. 16 has row 2 col 1 = dL_R[g] / dL_R[b] and row 3 col 1 = 1: both wrong.
+    d_r = means["red"] - means["gray"]
+    assert not np.isclose(d_r[1] / d_r[2], wt[1, 0])
+    assert not np.isclose(1.0, wt[2, 0])
+
+
+def test_eq16_refuses_a_pattern_not_brighter_in_its_own_channel():
+    means = _means_from_w(W_TRUE, np.zeros(3))
+    means["green"] = means["gray"].copy()
+    with pytest.raises(FitError, match="green"):
+        mixing_from_means(means)
+
+
+def test_w_tilde_recovered_under_noise_from_simulated_captures():
+    from viewcomp.calib.simulate import capture_patterns
+    from viewcomp.calib.simulator import make_screen
+    from viewcomp.calib.testing import small_simulator
+
+    sim = small_simulator(128, 64, seed=3)
+    screen = make_screen("green", "matte")
+    raw = capture_patterns(sim, screen)
+    lin = {k: sim.response.decode(v / 255.0).astype(np.float64) for k, v in raw.items()}
+    wt = mixing_from_means({k: lin[k].reshape(-1, 3).mean(axis=0) for k in lin})
+    w = np.asarray(screen.albedo)[:, None] * sim.projector.mixing
+    np.testing.assert_allclose(wt, w / np.diag(w)[None, :], atol=0.03)
+
+
+def test_rho_regression_round_trip():
+    levels = np.arange(256) / 255.0
+    truth = 0.01 + np.stack([0.3 * levels**2.2, 0.1 * levels**2.0, 0.2 * levels**2.4], 1)
+    rho = regress_rho(truth)
+    np.testing.assert_allclose(rho, truth, atol=1e-6)
+    inv, lo, hi = inverse_lut(rho)
+    back = lut_inverse(inv.astype(np.float32), lo, hi, lut_forward(rho, np.arange(256.0)[:, None]))
+    np.testing.assert_allclose(back * 255.0, np.repeat(np.arange(256.0)[:, None], 3, 1), atol=0.3)
+
+
+def test_rho_refuses_flat_and_reversed_ramps():
+    levels = np.arange(256) / 255.0
+    good = np.stack([levels**2.2] * 3, 1)
+    with pytest.raises(FitError, match="flat or decreasing"):
+        regress_rho(good[::-1].copy(), "screen/ramp")
+    with pytest.raises(FitError, match="flat or decreasing"):
+        regress_rho(np.full((256, 3), 0.2), "screen/ramp")
+    # Predicted ramps (strict=False) never raise.
+    assert np.all(np.diff(regress_rho(good[::-1].copy(), strict=False), axis=0) >= 0)
+
+
+def test_level_means_of_a_ramp_narrower_than_256():
+    cols = np.stack([np.linspace(0, 1, 100)] * 3, 1)
+    m = level_means(cols)
+    assert m.shape == (256, 3)
+    np.testing.assert_allclose(m[:, 0], np.linspace(0, 1, 256), atol=0.01)
+
+
+def _geometry() -> ScreenGeometry:
+    return ScreenGeometry.from_rig(simulation_rig())
+
+
+def test_reflection_is_the_mirror_of_the_incident_ray():
+    g = _geometry()
+    y = g.projector - g.pos
+    y /= np.linalg.norm(y, axis=-1, keepdims=True)
+    r = reflection_vectors(g.pos, g.projector)
+    n = np.array([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(r, 2 * (y @ n)[..., None] * n - y, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(r, axis=-1), 1.0)
+
+
+def test_eye_from_angle_conventions():
+    np.testing.assert_allclose(eye_from_angle(90, 0.5, 0.035), [0, 0.035, 0.5], atol=1e-12)
+    assert eye_from_angle(60, 0.5, 0.0)[0] > 0  # theta < 90 is the audience's right (+x)
+
+
+def test_phong_fit_recovers_k_and_gamma():
+    g = _geometry()
+    rv = g.rv(g.camera)
+    k, gamma = np.array([0.9, 0.6, 0.4]), np.array([12.0, 30.0, 5.0])
+    s = k * rv[..., None] ** gamma
+    fit = fit_phong(s, rv, "all")
+    np.testing.assert_allclose(fit.ksis, k, rtol=1e-9)
+    np.testing.assert_allclose(fit.gamma, gamma, rtol=1e-9)
+    row = fit_phong(s, rv, "row", row=rv.shape[0] // 2)
+    np.testing.assert_allclose(row.gamma, gamma, rtol=1e-6)
+
+
+def test_specular_map_removes_vignetting():
+    g = _geometry()
+    rv = g.rv(g.camera)
+    ramp = 0.6 + 0.4 * np.linspace(0, 1, rv.shape[1])[None, :, None]
+    vignette = np.broadcast_to(ramp, (*rv.shape, 3))
+    spec = 0.5 + 0.5 * np.maximum(rv, 0)[..., None] ** 20
+    s90, n = specular_map(0.3 * spec * vignette, 0.8 * vignette)
+    ratio = s90 / spec  # vignetting gone: S_90 is the lobe map up to one constant
+    np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0, 0], ratio.shape), rtol=1e-9)
+    np.testing.assert_allclose(n, (0.3 * spec * vignette).reshape(-1, 3).max(axis=0))
+
+
+def test_lobe_fit_recovers_baseline_kappa_gamma_under_noise():
+    g = _geometry()
+    rv = g.rv(g.camera)
+    b, kappa, gamma = np.array([0.8, 0.2, 0.15]), 0.35, 30.0
+    rng = np.random.default_rng(0)
+    s = b + kappa * rv[..., None] ** gamma + rng.normal(0, 0.005, (*rv.shape, 3))
+    lobe = fit_lobe(s, rv)
+    np.testing.assert_allclose(lobe.baseline, b, atol=0.01)
+    np.testing.assert_allclose(lobe.kappa, kappa, rtol=0.05)
+    assert abs(lobe.gamma - gamma) < 2.0
+    assert np.all(lobe.rms < 0.0075) and np.all(lobe.rms_power_law > 2 * lobe.rms)
+
+
+def test_lobe_fit_says_matte_when_there_is_no_lobe():
+    g = _geometry()
+    rv = g.rv(g.camera)
+    rng = np.random.default_rng(1)
+    s = np.full((*rv.shape, 3), 0.4) + rng.normal(0, 0.004, (*rv.shape, 3))
+    lobe = fit_lobe(s, rv)
+    assert np.all(lobe.kappa == 0) and "matte" in lobe.message
+
+
+def _brute_tone(u, v, c, lo, hi, lam, mu, scale):
+    best = None
+    for a in np.round(np.arange(1.0, 0.0999, -0.01), 2):
+        for beta in np.linspace(-0.3, 0.3, 1201):
+            y = a * u + beta * v + c
+            clipped = np.mean((y < lo) | (y > hi))
+            cost = clipped + lam * (1 - a) ** 2 + mu * (beta / scale) ** 2
+            if best is None or cost < best[0] - 1e-12:
+                best = (cost, a, beta)
+    return best
+
+
+@pytest.mark.parametrize("mu", [0.0, 1.0])
+def test_tone_map_solver_matches_brute_force(mu):
+    rng = np.random.default_rng(7)
+    u = rng.uniform(0.0, 1.3, (40, 3))
+    v = rng.uniform(0.5, 1.5, (40, 3))
+    c = rng.uniform(-0.1, 0.05, (40, 3))
+    t = choose_tone_map(u, v, c, 0.0, 1.0, lam=1.0, beta_weight=mu, beta_scale=0.5)
+    cost, _, _ = _brute_tone(u, v, c, 0.0, 1.0, 1.0, mu, 0.5)
+    assert t.cost <= cost + 1e-9  # exact in beta: never worse than a fine beta grid
+    y = t.alpha * u + t.beta * v + c
+    assert np.isclose(t.clipped, np.mean((y < -1e-12) | (y > 1 + 1e-12)))
+
+
+def test_tone_map_is_identity_when_everything_fits():
+    u = np.linspace(0.1, 0.9, 30).reshape(10, 3)
+    t = choose_tone_map(u, np.ones_like(u), 0.0, 0.0, 1.0)
+    assert (t.alpha, t.beta, t.clipped) == (1.0, 0.0, 0.0)
+
+
+def test_tone_smoother_eases_without_jumps():
+    s = ToneSmoother(tau=0.5)
+    assert s.update(0.0, 1.0, 0.0) == (1.0, 0.0)
+    a, _ = s.update(0.5, 0.5, 0.0)
+    assert 0.5 < a < 1.0 and np.isclose(a, 1.0 - 0.5 * (1 - np.exp(-1)))

@@ -1,0 +1,104 @@
+"""The simulator's physics (MODEL.md section 5)."""
+
+import numpy as np
+import pytest
+
+from viewcomp.calib.geometry import eye_from_angle
+from viewcomp.calib.simulator import SimulatorError, make_screen, white_screen
+from viewcomp.calib.testimages import uniform
+from viewcomp.calib.testing import small_simulator
+
+W, H = 96, 48
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return small_simulator(W, H, seed=5)
+
+
+def test_matte_screen_looks_the_same_from_every_angle(sim):
+    screen = make_screen("red", "matte")
+    img = uniform((120, 80, 200), W, H)
+    views = [sim.observe_linear(screen, img, eye_from_angle(a, 0.5, 0.035)) for a in (40, 90, 140)]
+    np.testing.assert_allclose(views[0], views[1], rtol=1e-12)
+    np.testing.assert_allclose(views[2], views[1], rtol=1e-12)
+
+
+def test_glossy_highlight_moves_with_the_eye(sim):
+    screen = make_screen("blue", "glossy")
+    img = uniform((110, 110, 110), W, H)
+    at90 = sim.lobe(screen, eye_from_angle(90, 0.5, 0.035))
+    at60 = sim.lobe(screen, eye_from_angle(60, 0.5, 0.035))
+    c90 = np.unravel_index(np.argmax(at90), at90.shape)[1]
+    c60 = np.unravel_index(np.argmax(at60), at60.shape)[1]
+    assert abs(c90 - W / 2) < W * 0.1  # in front: the highlight is in the middle
+    assert c60 > c90 + W * 0.3  # viewer to the right: highlight moves right
+    assert (
+        sim.observe(screen, img, eye_from_angle(90, 0.5, 0.035)).max()
+        > sim.observe(screen, img, eye_from_angle(60, 0.5, 0.035))[:, : W // 2].max()
+    )
+
+
+def test_specular_light_is_white_and_scales_with_the_projected_light(sim):
+    screen = make_screen("green", (0.3, 20.0))
+    eye = eye_from_angle(90, 0.5, 0.035)
+    spec = sim.radiance(screen, uniform((200, 10, 10), W, H), eye) - sim.radiance(
+        make_screen("green", "matte"), uniform((200, 10, 10), W, H), eye
+    )
+    light = sim.light(uniform((200, 10, 10), W, H))
+    # The lobe adds k_s (R.V)^n times the light that hits the pixel: the light's colour.
+    np.testing.assert_allclose(spec, sim.lobe(screen, eye)[..., None] * light, rtol=1e-12)
+    assert spec[H // 2, W // 2, 0] > 5 * spec[H // 2, W // 2, 1]  # red light, red highlight
+
+
+def test_falloff_is_cos_over_r_squared_and_one_at_the_centre(sim):
+    g = sim.geometry
+    d = g.projector - g.pos
+    r2 = np.sum(d * d, -1)
+    expect = (d[..., 2] / np.sqrt(r2)) / r2
+    np.testing.assert_allclose(sim.falloff, expect / expect[H // 2, W // 2])
+    assert sim.falloff[0, 0] < 0.95
+
+
+def test_projector_response_crosstalk_ambient_and_quantisation(sim):
+    black = sim.radiance(white_screen(), uniform((0, 0, 0), W, H), sim.geometry.camera)
+    assert np.all(black > 0)  # ambient and projector leak
+    red = sim.light(uniform((255, 0, 0), W, H))
+    assert np.all(red[..., 1] > 0.05 * red[..., 0])  # red primary leaks into camera green
+    cap = sim.capture(white_screen(), uniform((128, 128, 128), W, H), "k")
+    assert cap.dtype == np.uint8 and cap.shape == (H, W, 3)
+    f = sim.projector.response(np.array([[0.0, 128.0, 255.0]]).T.repeat(3, 1))
+    np.testing.assert_allclose(sim.projector.response_inverse(f), [[0] * 3, [128] * 3, [255] * 3])
+
+
+def test_vignetting_darkens_the_corners_of_captures_only(sim):
+    img = uniform((128, 128, 128), W, H)
+    eye = sim.geometry.camera
+    cap = sim.expose(sim.radiance(white_screen(), img, eye), vignetting=True)
+    eye_view = sim.observe_linear(white_screen(), img, eye)
+    assert cap[0, 0, 1] / eye_view[0, 0, 1] < 0.9
+    assert np.isclose(cap[H // 2, W // 2, 1] / eye_view[H // 2, W // 2, 1], 1.0, atol=0.01)
+
+
+def test_seeded_and_reproducible():
+    img = uniform((100, 100, 100), W, H)
+    a = small_simulator(W, H, seed=1).capture(white_screen(), img, "gray")
+    b = small_simulator(W, H, seed=1).capture(white_screen(), img, "gray")
+    c = small_simulator(W, H, seed=2).capture(white_screen(), img, "gray")
+    np.testing.assert_array_equal(a, b)
+    assert np.any(a != c)
+
+
+def test_screens_and_gloss_presets():
+    for name in ("red", "green", "blue", "magenta", "white", "textured"):
+        for gloss in ("matte", "satin", "glossy"):
+            s = make_screen(name, gloss, shape=(H, W))
+            assert s.albedo_map((H, W)).shape == (H, W, 3)
+    tex = make_screen("textured", "glossy", shape=(H, W)).albedo_map((H, W))
+    assert tex.std(axis=(0, 1)).min() > 0.02
+    with pytest.raises(SimulatorError, match="unknown screen"):
+        make_screen("purple")
+    with pytest.raises(SimulatorError, match="0..1"):
+        make_screen((1.5, 0.2, 0.2))
+    with pytest.raises(SimulatorError, match="unknown gloss"):
+        make_screen("red", "shiny")
