@@ -98,7 +98,7 @@ def test_corrupt_and_truncated_bundles_are_refused(world, tmp_path):
     cal.save(path)
     data = path.read_bytes()
     (tmp_path / "half.vcb").write_bytes(data[: len(data) // 2])
-    with pytest.raises(BundleError, match="half.vcb"):
+    with pytest.raises(BundleError, match=r"half\.vcb"):
         Calibration.load(tmp_path / "half.vcb")
     (tmp_path / "text.vcb").write_text("not a bundle")
     with pytest.raises(BundleError):
@@ -129,7 +129,7 @@ def test_mirrored_ramp_and_swapped_patterns_are_refused(world, tmp_path):
     with pytest.raises(FitError, match="screen/ramp"):
         calibrate(capture_set_from_raw(sim.rig, white, mirrored))
     swapped = dict(real, red=real["green"], green=real["red"])
-    with pytest.raises(FitError, match="red|green"):
+    with pytest.raises(FitError, match=r"swapped"):
         calibrate(capture_set_from_raw(sim.rig, white, swapped))
 
 

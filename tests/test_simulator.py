@@ -98,7 +98,7 @@ def test_screens_and_gloss_presets():
     assert tex.std(axis=(0, 1)).min() > 0.02
     with pytest.raises(SimulatorError, match="unknown screen"):
         make_screen("purple")
-    with pytest.raises(SimulatorError, match="0..1"):
+    with pytest.raises(SimulatorError, match=r"0\.\.1"):
         make_screen((1.5, 0.2, 0.2))
     with pytest.raises(SimulatorError, match="unknown gloss"):
         make_screen("red", "shiny")
