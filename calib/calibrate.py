@@ -241,18 +241,20 @@ def calibrate(
     fit_mode: str = "all",
     smooth_px: float = DEFAULT_SMOOTH_PX,
 ) -> Calibration:
-    """Calibrate both methods from a loaded capture set (``space = "projector"``).
+    """Calibrate both methods from a loaded capture set.
+
+    Captures in camera space (``[capture] space = "camera"``) are first rectified onto the
+    projector grid (``viewcomp.calib.geocal``: chessboard + Gray code); the geometric
+    statistics go to ``info["geometry"]``.
 
     Raises:
         FitError: a capture that makes a fit impossible, naming it and what to do.
     """
+    geometry_stats = None
     if cs.rig.capture.space != "projector":
-        raise FitError(
-            "rig.toml",
-            '[capture] space = "camera" needs geometric calibration, which this version '
-            "cannot do yet: rectify the captures to the projector grid and set space = "
-            '"projector"',
-        )
+        from .geocal import rectify_capture_set  # camera frames -> the projector grid
+
+        cs, geometry_stats = rectify_capture_set(cs)
     check_captures(cs)
     t0 = time.perf_counter()
     geometry = ScreenGeometry.from_rig(cs.rig)
@@ -269,4 +271,6 @@ def calibrate(
         "smooth_px": smooth_px,
         "seconds": round(time.perf_counter() - t0, 2),
     }
+    if geometry_stats is not None:
+        info["geometry"] = geometry_stats
     return Calibration(rig=cs.rig, paper=paper, pixel=pixel, info=info)

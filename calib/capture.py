@@ -117,6 +117,24 @@ def _size_error(rel: str, w: int, h: int, rig: Rig) -> CaptureError | None:
     return None
 
 
+def _same_size(
+    rel: str, img: np.ndarray, rig: Rig, first: tuple[str, int, int] | None
+) -> tuple[str, int, int]:
+    """Check one image's size against the rig and the set's first image; returns the first."""
+    h, w = img.shape[:2]
+    err = _size_error(rel, w, h, rig)
+    if err is not None:
+        raise err
+    if first is None:
+        return (rel, w, h)
+    if (w, h) != first[1:]:
+        raise CaptureError(
+            f"wrong size: {rel} is {w}x{h}, {first[0]} is {first[1]}x{first[2]} - all "
+            "captures of a set must have one size"
+        )
+    return first
+
+
 def read_capture_set(directory: str | Path) -> CaptureSet:
     """Read and validate a capture-set folder.
 
@@ -171,17 +189,7 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
             raw = read_image(p)
         except CaptureError as exc:
             raise CaptureError(f"{exc} (capture {rel} in {root})") from None
-        h, w = raw.shape[:2]
-        err = _size_error(rel, w, h, rig)
-        if err is not None:
-            raise err
-        if first is None:
-            first = (rel, w, h)
-        elif (w, h) != first[1:]:
-            raise CaptureError(
-                f"wrong size: {rel} is {w}x{h}, {first[0]} is {first[1]}x{first[2]} - all "
-                "captures of a set must have one size"
-            )
+        first = _same_size(rel, raw, rig, first)
         fractions[(sub, name)] = max_code_fraction(raw)
         loaded[sub][name] = to_linear(raw, response)
 
@@ -254,17 +262,7 @@ def write_capture_set(
     first: tuple[str, int, int] | None = None
     for sub, images in (("white", white), ("screen", screen)):
         for name, img in images.items():
-            h, w = np.asarray(img).shape[:2]
-            rel = f"{sub}/{name}"
-            err = _size_error(rel, w, h, rig)
-            if err is not None:
-                raise err
-            if first is None:
-                first = (rel, w, h)
-            elif (w, h) != first[1:]:
-                raise CaptureError(
-                    f"wrong size: {rel} is {w}x{h}, {first[0]} is {first[1]}x{first[2]}"
-                )
+            first = _same_size(f"{sub}/{name}", np.asarray(img), rig, first)
 
     written: list[Path] = []
     root.mkdir(parents=True, exist_ok=True)

@@ -100,9 +100,9 @@ class World:
             proj = replace(proj, fov_y=projector_fov)
         rig = replace(rig, projector=proj)
         if space == "camera":
-            from .simcamera import capture_camera_patterns, scaled_camera_rig
+            from .simcamera import camera_simulator, capture_camera_patterns, scaled_camera_rig
 
-            sim = Simulator(rig=scaled_camera_rig(rig, size), seed=seed)
+            sim = camera_simulator(scaled_camera_rig(rig, size), seed)
             cam = SimCamera(sim)
             white = capture_camera_patterns(cam, white_screen(), geometric="chessboard")
             return cls(sim, white, gloss, lam, mu, space, cam)
@@ -358,17 +358,23 @@ def run(
     angles: Iterable[float] = SWEEP_ANGLES,
     screens: Iterable[str] = SWEEP_SCREENS,
     progress: Progress | None = None,
+    space: str = "projector",
 ) -> dict[str, Any]:
-    """Run the protocol(s), write report.json, report.md and the plots; return the report."""
+    """Run the protocol(s), write report.json, report.md and the plots; return the report.
+
+    ``space = "camera"``: every calibration comes from simulated camera frames (lens, pose,
+    chessboard and Gray code) rectified by `calibrate`, as with real hardware.
+    """
     from .report import write_report
 
     if protocol not in ("table2", "sweep", "all"):
         raise ValueError(f"protocol must be table2, sweep or all, got {protocol!r}")
     t0 = time.perf_counter()
-    world = World.make(seed=seed, size=size)
+    world = World.make(seed=seed, size=size, space=space)
     report: dict[str, Any] = {
         "config": {
             "seed": seed,
+            "capture_space": space,
             "projector": list(world.sim.rig.projector.resolution),
             "projector_fov_y": world.sim.rig.projector.fov_y,
             "gloss": world.gloss,

@@ -53,7 +53,6 @@ def screen_points(projector: Device) -> np.ndarray:
     Raises:
         GeometryError: when some pixel's ray does not reach the screen in front of it.
     """
-    w, h = projector.resolution
     rays = projector.pixel_rays()
     origin = np.asarray(projector.position, float)
     dz = rays[..., 2]
@@ -66,7 +65,6 @@ def screen_points(projector: Device) -> np.ndarray:
         )
     pts = origin + t[..., None] * rays
     pts[..., 2] = 0.0
-    assert pts.shape == (h, w, 3)
     return pts
 
 

@@ -34,7 +34,6 @@ DEFAULT_LAMBDA = 1.0
 DEFAULT_BETA_WEIGHT = 3.0
 ALPHA_STEP = 0.01
 ALPHA_MIN = 0.1
-THUMB_PIXELS = 4096
 
 
 @dataclass(frozen=True)
@@ -130,18 +129,6 @@ def choose_tone_map(
             ):
                 best = t
     return best if best is not None else ToneMap(1.0, 0.0, 0.0, 0.0)
-
-
-def thumbnail_step(shape: tuple[int, ...], max_pixels: int = THUMB_PIXELS) -> int:
-    """The subsampling step that leaves at most about ``max_pixels`` pixels of an (H, W) grid."""
-    h, w = shape[:2]
-    return max(1, int(np.ceil(np.sqrt(h * w / max_pixels))))
-
-
-def thumbnail(frame: np.ndarray, step: int | None = None) -> np.ndarray:
-    """Every ``step``-th pixel of an (H, W, C) frame: the tone map's statistics sample."""
-    s = thumbnail_step(frame.shape) if step is None else step
-    return frame[::s, ::s]
 
 
 class ToneSmoother:

@@ -13,6 +13,7 @@ from viewcomp import __version__
 COMMANDS = (
     "patterns",
     "simulate",
+    "capture",
     "calibrate",
     "render",
     "evaluate",

@@ -41,7 +41,9 @@ def run(args: argparse.Namespace) -> int:
     log = Log()
     log(f"reading {args.capture_dir}")
     cs = read_capture_set(args.capture_dir)
-    log(f"calibrating ({cs.size[0]}x{cs.size[1]}, black capture: {cs.has_black})")
+    w, h = cs.rig.projector.resolution
+    space = cs.rig.capture.space
+    log(f"calibrating a {w}x{h} projector ({space} space captures, black: {cs.has_black})")
     smooth = DEFAULT_SMOOTH_PX if args.smooth is None else args.smooth
     cal = calibrate(cs, fit_mode=args.paper_fit, smooth_px=smooth)
     cal.save(args.output)
@@ -57,6 +59,15 @@ def run(args: argparse.Namespace) -> int:
         f"{_v(lobe.rms_power_law)}); {lobe.message}"
     )
     print(f"  projector response from the white ramp: rms misfit {cal.pixel.response_rms:.4f}")
+    geo = cal.info.get("geometry")
+    if geo:
+        cb, m = geo.get("chessboard", {}), geo.get("map", {})
+        print(
+            f"  geometry (camera space): chessboard {cb.get('corners')} corners, Zhang "
+            f"reprojection {cb.get('zhang_rms_px')} px RMS; Gray-code map vs chessboard "
+            f"{m.get('chessboard_rms_px')} px RMS; lens {m.get('distortion')}; largest frame "
+            f"shift {geo.get('max_frame_shift_px')} px"
+        )
     return 0
 
 

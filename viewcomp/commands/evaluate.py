@@ -19,6 +19,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--protocol", choices=["table2", "sweep", "all"], default="all")
     p.add_argument("--seed", type=int, default=0, help="simulator noise seed (default 0)")
     p.add_argument("--size", default=None, help="projector grid WxH (default 640x320, the paper's)")
+    p.add_argument(
+        "--space",
+        choices=["projector", "camera"],
+        default="projector",
+        help="calibrate from projector-grid captures (default) or from simulated camera "
+        "frames rectified by calibrate (lens, chessboard, Gray code; slower)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
 
@@ -30,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     log = Log(args.quiet)
     size = parse_size(args.size) if args.size else None
     log(f"evaluating protocol {args.protocol} (seed {args.seed})")
-    rep = run_eval(args.output, args.protocol, args.seed, size, progress=log)
+    rep = run_eval(args.output, args.protocol, args.seed, size, progress=log, space=args.space)
     if "table2_checks" in rep:
         print("table2:", rep["table2_checks"])
     if "sweep_checks" in rep:

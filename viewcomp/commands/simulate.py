@@ -43,16 +43,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from viewcomp.calib.simulate import simulate_capture_set, simulation_rig
     from viewcomp.calib.simulator import SCREEN_COLOURS
-
-    from dataclasses import replace
 
     screen = args.screen if args.screen in SCREEN_COLOURS else parse_rgb(args.screen)
     rig = simulation_rig()
     if args.size:
         w, h = parse_size(args.size)
         rig = replace(rig, projector=replace(rig.projector, resolution=(w, h)))
+        if args.space == "camera":  # keep the camera's pixels per projector pixel
+            from viewcomp.calib.simcamera import scaled_camera_rig
+
+            rig = scaled_camera_rig(rig, (w, h))
     paths = simulate_capture_set(
         args.out_dir, screen, args.gloss, args.space, args.seed, rig=rig, black=not args.no_black
     )

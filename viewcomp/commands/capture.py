@@ -1,0 +1,206 @@
+"""`viewcomp capture OUT_DIR --camera N --monitor M`: a capture set from a real projector and
+camera (or, with --simulate, from the simulated ones through the same procedure)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from viewcomp.cli import UsageError
+
+if TYPE_CHECKING:
+    from viewcomp.calib.rig import Rig
+    from viewcomp.rt.devices import Camera, Projector, SimulatedRig
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from viewcomp.calib.simulator import GLOSS_PRESETS, SCREEN_COLOURS
+
+    p = sub.add_parser(
+        "capture",
+        help="drive a projector and a camera and write a capture set",
+        description="Show every calibration pattern fullscreen on the projector's monitor, "
+        "grab and average camera frames (exposure and white balance locked where the camera "
+        "allows), check each capture at once (saturated, too dark, not visible, camera moved, "
+        "chessboard not found) and say what to change. Asks you to put the white screen in "
+        "place for white/ and the real screen for screen/. Writes a capture set with "
+        '[capture] space = "camera" and a rig.toml to complete; nothing is written when a '
+        "capture is refused.",
+    )
+    p.add_argument("out_dir", nargs="?", help="capture-set folder to write (new or empty)")
+    p.add_argument("--camera", type=int, help="OpenCV camera index (0 is the first)")
+    p.add_argument("--monitor", type=int, help="the projector's monitor (see --list-monitors)")
+    p.add_argument("--frames", type=int, default=8, help="frames averaged per capture (default 8)")
+    p.add_argument(
+        "--settle",
+        type=float,
+        default=None,
+        help="seconds between showing a pattern and grabbing (default 0.5; 0 with --simulate)",
+    )
+    p.add_argument(
+        "--exposure", type=float, default=None, help="camera exposure, in the driver's units"
+    )
+    p.add_argument(
+        "--camera-size", default=None, help="camera resolution WIDTHxHEIGHT to ask the driver for"
+    )
+    p.add_argument(
+        "--rig",
+        default=None,
+        help="a rig.toml whose geometry to keep (resolutions are measured); without it the "
+        "written rig.toml must be completed by hand",
+    )
+    p.add_argument(
+        "--response",
+        default=None,
+        help='camera response to write into rig.toml: "estimate" (from the Gray-code '
+        'captures; the default without --rig), "srgb", "linear" or a gamma g',
+    )
+    p.add_argument("--yes", action="store_true", help="answer every prompt (unattended runs)")
+    p.add_argument(
+        "--list-monitors", action="store_true", help="list the monitors GLFW sees and exit"
+    )
+    sim = p.add_argument_group("simulation (no hardware)")
+    sim.add_argument(
+        "--simulate",
+        action="store_true",
+        help="use the simulated projector and camera instead of --camera and --monitor",
+    )
+    sim.add_argument(
+        "--screen",
+        default="magenta",
+        help=f"simulated real screen: {', '.join(SCREEN_COLOURS)} or R,G,B (default magenta)",
+    )
+    sim.add_argument("--gloss", default="glossy", choices=sorted(GLOSS_PRESETS))
+    sim.add_argument("--seed", type=int, default=0, help="simulated noise seed")
+    sim.add_argument(
+        "--sim-size",
+        default=None,
+        help="simulated projector WIDTHxHEIGHT (the camera scales with it; default 640x320)",
+    )
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from viewcomp.commands._common import Log, parse_size
+
+    if args.list_monitors:
+        return _list_monitors()
+    if args.out_dir is None:
+        raise UsageError("give the capture-set folder OUT_DIR")
+    if args.frames < 1:
+        raise UsageError(f"--frames must be at least 1, got {args.frames}")
+    if args.settle is not None and args.settle < 0:
+        raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
+    if not args.simulate and (args.camera is None or args.monitor is None):
+        raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
+    from viewcomp.calib.rig import load_rig
+    from viewcomp.rt.capture import console_prompt, run_capture
+
+    template = load_rig(args.rig) if args.rig else None
+    response = args.response
+    if response is None and template is None and not args.simulate:
+        response = "estimate"
+    if response is not None and response != "estimate":
+        from viewcomp.calib.response import parse_response
+
+        try:
+            parse_response(response)
+        except ValueError as e:
+            raise UsageError(f"--response: {e}") from None
+    log = Log()
+    base_prompt = (lambda stage, message: _auto(stage, message, log)) if args.yes else None
+    if args.simulate:
+        size = parse_size(args.sim_size) if args.sim_size else None
+        rig_dev, projector, camera, template = _simulated(args, size, template)
+
+        def prompt(stage: str, message: str) -> bool:
+            ok = (base_prompt or console_prompt)(stage, message)
+            if ok:
+                rig_dev.use_screen(stage)  # the simulated hands swap the screen
+            return ok
+
+        settle = 0.0 if args.settle is None else args.settle
+    else:
+        projector, camera = _hardware(args, parse_size)
+        prompt = base_prompt or console_prompt
+        settle = 0.5 if args.settle is None else args.settle
+    try:
+        paths = run_capture(
+            args.out_dir,
+            projector,
+            camera,
+            rig_template=template,
+            prompt=prompt,
+            log=log,
+            frames=args.frames,
+            settle=settle,
+            response=response,
+        )
+    finally:
+        projector.close()
+        camera.close()
+    print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
+    return 0
+
+
+def _auto(stage: str, message: str, log: Callable[[str], None]) -> bool:
+    log(f"[{stage}] {message} (--yes: continuing)")
+    return True
+
+
+def _simulated(
+    args: argparse.Namespace, size: tuple[int, int] | None, template: Rig | None
+) -> tuple[SimulatedRig, Projector, Camera, Rig]:
+    """The simulated rig (screens "white" and "screen"), its two devices, and the rig.toml to
+    write (the simulation's geometry, without the lens)."""
+    from dataclasses import replace
+
+    from viewcomp.calib.simcamera import camera_simulator, scaled_camera_rig, written_rig
+    from viewcomp.calib.simulate import simulation_rig
+    from viewcomp.calib.simulator import SCREEN_COLOURS, make_screen, white_screen
+    from viewcomp.commands._common import parse_rgb
+    from viewcomp.rt.devices import SimulatedRig as _SimulatedRig
+
+    rig = template or simulation_rig()
+    if size is not None:
+        rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
+    true_rig = scaled_camera_rig(rig, size)
+    sim = camera_simulator(true_rig, args.seed)
+    colour = args.screen if args.screen in SCREEN_COLOURS else parse_rgb(args.screen)
+    screen = make_screen(colour, args.gloss, shape=sim.shape, seed=args.seed)
+    dev = _SimulatedRig(sim, {"white": white_screen(), "screen": screen})
+    # the simulated world's geometry is known: write it (without the lens, for calibrate)
+    return dev, dev.projector, dev.camera, written_rig(true_rig)
+
+
+def _hardware(
+    args: argparse.Namespace, parse_size: Callable[[str], tuple[int, int]]
+) -> tuple[Projector, Camera]:
+    """The glfw projector on --monitor and the OpenCV camera --camera."""
+    from viewcomp.rt.devices import GlfwProjector, OpenCVCamera
+
+    cam_size = parse_size(args.camera_size) if args.camera_size else None
+    camera = OpenCVCamera(args.camera, size=cam_size, exposure=args.exposure)
+    try:
+        projector = GlfwProjector(args.monitor)
+    except BaseException:
+        camera.close()
+        raise
+    return projector, camera
+
+
+def _list_monitors() -> int:
+    from viewcomp.rt.devices import list_monitors
+
+    mons = list_monitors()
+    if not mons:
+        print("GLFW sees no monitor", file=sys.stderr)
+        return 1
+    for m in mons:
+        print(
+            f"{m['index']}: {m['name']}  {m['width']}x{m['height']} @ {m['refresh_hz']} Hz  "
+            f"at {m['position'][0]},{m['position'][1]}"
+        )
+    return 0
