@@ -1,119 +1,164 @@
-"""Benchmark of the runtime: prints one JSON object to stdout.
+"""Benchmark of the runtime: prints one JSON object to stdout (docs/BENCHMARKS.md).
 
-Per-frame milliseconds (median of the repeats) at 720p, 1080p and 2160p for: decode (PyAV on
-the worker thread, yuv420p planes out), upload (three planes), compensation draw (``pixel``,
-``paper``), pass-through draw (``identity``), read-back; the numpy reference at 1080p;
-start-up (context, shader compile, model upload) apart; and at 1080p the whole
-``render_file`` pipeline (decode -> compensate -> x264 encode) with and without compensation.
+Every entry is per frame, in milliseconds, as ``{"wall": .., "cpu": ..}``: the median wall
+time and the median CPU time of the whole process (all threads: llvmpipe's rasterisers,
+decoder, encoder). On a shared machine the wall time depends on who else runs; the CPU time
+much less, so compare ratios within one run and look at both.
 
-Synthetic models from :mod:`viewcomp.rt.testing`; run as
-``.venv/bin/python bench/bench_render.py [--sizes 720p,1080p] [--repeats 7]``.
+- ``per_frame``: at 720p, 1080p and 2160p: decode (PyAV on the worker thread, yuv420p planes
+  out), upload (planes, RGB), the shader for ``identity`` (pass-through), ``pixel`` (float32
+  maps, the default), ``pixel_packed`` (20-bit maps) and ``paper`` on planes and on RGB,
+  read-back; start-up (program compile, model upload) apart.
+- ``cpu_reference_1080p``: the numpy reference (``viewcomp.calib.reference.compensate``) and
+  ``speedup_1080p`` = reference / GL (upload RGB + shader + read-back).
+- ``params``: ``comp(thumb, eye, t)`` of ``viewcomp.calib.compensation.Compensation`` on a
+  real (simulated) calibration, the eye fixed or moving every frame, thumbnail included.
+- ``pipeline_1080p``: the whole ``render_file`` (decode -> thumbnail -> params -> GL ->
+  x264 CRF 18 preset veryfast on its own thread), marginal per frame = (time for 90 frames -
+  time for 30 frames) / 60, so start-up is apart; identity vs pixel with a fixed tone map
+  (the GL pipeline alone; float32 and packed maps) and with the real per-frame tone map.
+  The clip: a 1080p pan over a procedural landscape (``viewcomp.calib.testimages``), clean
+  and with sensor-like grain.
+
+Synthetic models (:mod:`viewcomp.rt.testing`) stand in for calibrations at 720p..2160p (the
+GL cost depends on the grid, not on the numbers). Run from the repository root::
+
+    .venv/bin/python bench/bench_render.py [--sizes 720p,1080p,2160p] [--repeats 5]
+        [--pipeline-frames 30,90] [--skip-pipeline] > bench.json
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
+import platform
 import statistics
 import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import av
 import numpy as np
 
 from viewcomp.calib.reference import compensate
 from viewcomp.rt.compensator import Compensator, eye_from_angle
-from viewcomp.rt.context import create_context
+from viewcomp.rt.context import create_context, finish
 from viewcomp.rt.frames import rgb_to_yuv420p, yuv420p_to_rgb
 from viewcomp.rt.pipeline import render_file
-from viewcomp.rt.testing import smooth_frame, synthetic_model
+from viewcomp.rt.testing import SyntheticCompensation, smooth_frame, synthetic_model
 from viewcomp.rt.tracks import constant_angle
 from viewcomp.rt.video import VideoReader
 
 SIZES = {"720p": (1280, 720), "1080p": (1920, 1080), "2160p": (3840, 2160)}
 EYE = eye_from_angle(60.0, 0.5, 0.035)
+ALPHA, BETA = 0.55, 0.02
 
 
-def _ms(fn: Callable[[], object], repeats: int) -> float:
-    """Median wall milliseconds of ``fn`` over ``repeats`` runs (after one warm-up run)."""
+def _r(x: float) -> float:
+    return round(1e3 * x, 2)
+
+
+def _measure(fn: Callable[[], object], repeats: int) -> dict[str, float]:
+    """Median wall and process-CPU milliseconds of ``fn`` over ``repeats`` (one warm-up)."""
     fn()
-    times = []
+    wall, cpu = [], []
     for _ in range(repeats):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         fn()
-        times.append(time.perf_counter() - t)
-    return round(1e3 * statistics.median(times), 2)
+        wall.append(time.perf_counter() - t)
+        cpu.append(time.process_time() - c)
+    return {"wall": _r(statistics.median(wall)), "cpu": _r(statistics.median(cpu))}
 
 
-def _write_clip(path: Path, w: int, h: int, frames: int, rate: int = 30) -> None:
-    """An H.264 clip (ultrafast) of a smooth image scrolling, no audio."""
-    planes = rgb_to_yuv420p(smooth_frame(w, h, seed=1), "bt709")
+def _pan_frames(w: int, h: int, frames: int, grain: float) -> Callable[[int], np.ndarray]:
+    """Frame i of a pan (4 px/frame) over a procedural landscape, with Gaussian grain."""
+    from viewcomp.calib.testimages import procedural_images
+
+    base = procedural_images(w + 4 * frames, h)["landscape"]
+    rng = np.random.default_rng(0)
+
+    def frame(i: int) -> np.ndarray:
+        f = base[:, 4 * i : 4 * i + w]
+        if grain > 0:
+            noise = rng.normal(0.0, grain, f.shape).astype(np.float32)
+            f = np.clip(f + noise, 0, 255).astype(np.uint8)
+        return np.ascontiguousarray(f)
+
+    return frame
+
+
+def _write_clip(path: Path, w: int, h: int, frames: int, grain: float = 0.0) -> None:
+    """An H.264 clip (x264 ultrafast, CRF 18, 30 fps), no audio."""
+    frame = _pan_frames(w, h, frames, grain)
     with av.open(str(path), "w") as out:
-        vs = out.add_stream("libx264", rate=rate)
+        vs = out.add_stream("libx264", rate=30)
         vs.width, vs.height, vs.pix_fmt = w, h, "yuv420p"
-        vs.options = {"preset": "ultrafast", "crf": "20"}
+        vs.options = {"preset": "ultrafast", "crf": "18"}
         for i in range(frames):
-            frame = av.VideoFrame(w, h, "yuv420p")
-            for plane, arr in zip(frame.planes, (planes.y, planes.u, planes.v), strict=True):
-                view = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
-                view[:, : plane.width] = np.roll(arr, 4 * i // (1 + (arr is not planes.y)), 1)
-            frame.pts = i
-            for packet in vs.encode(frame):
+            vf = av.VideoFrame.from_ndarray(frame(i), format="rgb24").reformat(format="yuv420p")
+            vf.pts = i
+            for packet in vs.encode(vf):
                 out.mux(packet)
         for packet in vs.encode(None):
             out.mux(packet)
 
 
-def _decode_ms(path: Path) -> float:
+def _decode(path: Path) -> dict[str, float]:
     with VideoReader(path, audio="none") as reader:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         n = sum(1 for _ in reader)
-        return round(1e3 * (time.perf_counter() - t) / n, 2)
+        return {"wall": _r((time.perf_counter() - t) / n), "cpu": _r((time.process_time() - c) / n)}
 
 
-def bench_size(ctx: object, name: str, repeats: int, tmp: Path) -> dict[str, object]:
+def bench_size(ctx: Any, name: str, repeats: int, tmp: Path) -> dict[str, Any]:
     w, h = SIZES[name]
-    res: dict[str, object] = {}
+    res: dict[str, Any] = {}
     clip = tmp / f"{name}.mp4"
-    _write_clip(clip, w, h, frames=12)
-    res["decode_ms"] = _decode_ms(clip)
+    _write_clip(clip, w, h, frames=30)
+    res["decode"] = _decode(clip)
     planes = rgb_to_yuv420p(smooth_frame(w, h, seed=2), "bt709")
     frame = yuv420p_to_rgb(planes)
+    out = np.empty((h, w, 3), np.uint8)
     startup = {}
-    for method in ("pixel", "paper"):
-        model = synthetic_model(method, w, h)
+    variants = (("pixel", "float32"), ("pixel_packed", "packed"), ("paper", "float32"))
+    for method, precision in variants:
+        model = synthetic_model(method.split("_")[0], w, h)  # type: ignore[arg-type]
         t = time.perf_counter()
-        comp = Compensator(model, ctx)  # type: ignore[arg-type]
+        comp = Compensator(model, ctx, precision=precision)  # type: ignore[arg-type]
         comp.set_eye(*EYE)
-        comp.set_tone(0.55, 0.02)
-        comp.render_planes(planes)  # compiles the variant, first draw
-        ctx.finish()  # type: ignore[attr-defined]
-        startup[f"{method}_ms"] = round(1e3 * (time.perf_counter() - t), 1)
+        comp.set_tone(ALPHA, BETA)
+        comp.render_planes(planes, out=out)  # compiles the variant, first draw
+        startup[method] = _r(time.perf_counter() - t)
         try:
 
             def draw(c: Compensator = comp) -> None:
                 c.draw()
-                c.ctx.finish()
+                finish(c.ctx)
 
-            comp.upload_planes(planes)
-            res[f"{method}_ms"] = _ms(draw, repeats)
+            for kind in ("yuv", "rgb"):
+                comp.upload_planes(planes) if kind == "yuv" else comp.upload(frame)
+                res[f"{method}_{kind}"] = _measure(draw, repeats)
             if method == "pixel":
-                res["upload_planes_ms"] = _ms(
-                    lambda c=comp: (c.upload_planes(planes), c.ctx.finish()), repeats
+                res["upload_planes"] = _measure(
+                    lambda c=comp: (c.upload_planes(planes), finish(c.ctx)), repeats
                 )
-                res["upload_rgb_ms"] = _ms(
-                    lambda c=comp: (c.upload(frame), c.ctx.finish()), repeats
+                res["upload_rgb"] = _measure(
+                    lambda c=comp: (c.upload(frame), finish(c.ctx)), repeats
                 )
-                res["readback_ms"] = _ms(comp.read, repeats)
+                res["readback"] = _measure(lambda c=comp: c.read(out), repeats)
                 comp.identity = True
-                comp.upload_planes(planes)
-                res["identity_yuv_ms"] = _ms(draw, repeats)
-                comp.upload(frame)
-                res["identity_rgb_ms"] = _ms(draw, repeats)
+                t = time.perf_counter()
+                comp.render_planes(planes, out=out)  # compile outside the timing
+                startup["identity_program"] = _r(time.perf_counter() - t)
+                for kind in ("yuv", "rgb"):
+                    comp.upload_planes(planes) if kind == "yuv" else comp.upload(frame)
+                    res[f"identity_{kind}"] = _measure(draw, repeats)
         finally:
             comp.release()
         del model
@@ -121,61 +166,155 @@ def bench_size(ctx: object, name: str, repeats: int, tmp: Path) -> dict[str, obj
     return res
 
 
-def bench_cpu_1080p(repeats: int) -> dict[str, float]:
+def bench_cpu_1080p(repeats: int) -> dict[str, Any]:
     w, h = SIZES["1080p"]
     frame = smooth_frame(w, h, seed=2)
     out = {}
     for method in ("pixel", "paper"):
-        model = synthetic_model(method, w, h)
-        out[f"{method}_ms"] = _ms(lambda m=model: compensate(m, frame, EYE, 0.55, 0.02), repeats)
+        model = synthetic_model(method, w, h)  # type: ignore[arg-type]
+        out[method] = _measure(lambda m=model: compensate(m, frame, EYE, ALPHA, BETA), repeats)
     return out
 
 
-def bench_pipeline_1080p(ctx: object, tmp: Path, frames: int) -> dict[str, float]:
-    """Whole render_file (decode -> GL -> x264 CRF 18) fps at 1080p, identity vs pixel."""
+def bench_params(repeats: int, grid: tuple[int, int]) -> dict[str, Any]:
+    """comp(thumb, eye, t) of the real Compensation, thumbnail of a 1080p frame included."""
+    try:
+        from viewcomp.calib.compensation import THUMB_SIDE, Compensation
+        from viewcomp.calib.testing import small_calibration
+        from viewcomp.rt.frames import thumbnail_planes
+    except ImportError as exc:
+        return {"unavailable": str(exc)}
+    cal = small_calibration(w=grid[0], h=grid[1])
+    planes = rgb_to_yuv420p(_pan_frames(1920, 1080, 1, 0.0)(0), "bt709")
+    res: dict[str, Any] = {"calibration_grid": f"{grid[0]}x{grid[1]}", "tau": 0.5}
+    res["thumbnail_from_1080p_planes"] = _measure(
+        lambda: thumbnail_planes(planes, THUMB_SIDE), repeats
+    )
+    thumb = thumbnail_planes(planes, THUMB_SIDE)
+    res["thumbnail_shape"] = list(thumb.shape)
+    for method in ("pixel", "paper"):
+        comp = Compensation(cal, method, tau=0.5)
+        comp.base_model()
+        for moving in (False, True):
+            state = {"i": 0}
+
+            def call(c: Any = comp, mv: bool = moving, s: dict[str, int] = state) -> None:
+                s["i"] += 1
+                angle = 45.0 + (s["i"] % 90 if mv else 15)
+                c(thumb, eye_from_angle(angle, 0.5, 0.035), s["i"] / 30)
+
+            res[f"{method}_{'moving' if moving else 'fixed'}_eye"] = _measure(call, repeats)
+    return res
+
+
+def _real_tone_comp(model: Any) -> Any:
+    """The real Compensation (per-frame tone map) on a synthetic 1080p pixel model."""
+    from viewcomp.calib.compensation import Compensation
+
+    cal = SimpleNamespace(shape=model.shape, pixel=SimpleNamespace(runtime_model=lambda: model))
+    return Compensation(cal, "pixel", tau=0.5)  # type: ignore[arg-type]
+
+
+def bench_pipeline_1080p(ctx: Any, tmp: Path, counts: tuple[int, int]) -> dict[str, Any]:
+    """Marginal per-frame cost of the whole render_file at 1080p, identity vs pixel."""
     w, h = SIZES["1080p"]
-    clip = tmp / "pipe.mp4"
-    _write_clip(clip, w, h, frames=frames)
     model = synthetic_model("pixel", w, h)
-    out = {}
-    for label, identity in (("identity_fps", True), ("pixel_fps", False)):
-        stats = render_file(model, clip, tmp / f"out_{label}.mp4", constant_angle(60, 0.5, 0.035),
-                            identity=identity, progress=False, tone=lambda t: (0.55, 0.02),
-                            ctx=ctx)  # fmt: skip
-        out[label] = round(stats.fps, 2)
-    out["pixel_over_identity"] = round(out["pixel_fps"] / out["identity_fps"], 3)
-    return out
+    fixed = SyntheticCompensation(model, (ALPHA, BETA))
+    eye = constant_angle(60, 0.5, 0.035)
+    try:
+        real: Any = _real_tone_comp(model)
+    except Exception as exc:  # the stand-in calibration no longer fits Compensation
+        real = None
+        real_error = f"{type(exc).__name__}: {exc}"
+    res: dict[str, Any] = {"frames": list(counts), "encoder": "libx264 crf 18 veryfast"}
+    for grain in (0.0, 2.0):
+        label = "clean" if grain == 0 else "grain"
+        clips = {n: tmp / f"pipe_{label}_{n}.mp4" for n in counts}
+        for n, path in clips.items():
+            _write_clip(path, w, h, frames=n, grain=grain)
+        configs = [
+            ("identity", fixed, True, "float32"),
+            ("pixel_fixed_tone", fixed, False, "float32"),
+            ("pixel_packed_fixed_tone", fixed, False, "packed"),
+        ]
+        if real is not None:
+            configs.append(("pixel_real_tone", real, False, "float32"))
+        out: dict[str, Any] = {}
+        for name, comp, identity, precision in configs:
+            runs = {}
+            for n, path in clips.items():
+                t, c = time.perf_counter(), time.process_time()
+                stats = render_file(comp, path, tmp / "out.mp4", eye, identity=identity,
+                                    progress=False, ctx=ctx, precision=precision)  # fmt: skip
+                runs[n] = (time.perf_counter() - t, time.process_time() - c, stats)
+            (a_wall, a_cpu, a), (b_wall, b_cpu, b) = runs[counts[0]], runs[counts[1]]
+            dn = b.frames - a.frames
+            wall = (b_wall - a_wall) / dn
+            out[name] = {
+                "fps": round(1.0 / wall, 2),
+                "ms": {"wall": _r(wall), "cpu": _r((b_cpu - a_cpu) / dn)},
+                "params_ms": _r((b.params_seconds - a.params_seconds) / dn),
+                "startup_s": round(a.startup_seconds, 2),
+            }
+        ident = out["identity"]
+        for name in ("pixel_fixed_tone", "pixel_packed_fixed_tone", "pixel_real_tone"):
+            if name in out:
+                out[f"{name}_over_identity"] = {
+                    "fps_ratio": round(out[name]["fps"] / ident["fps"], 3),
+                    "cpu_ratio": round(ident["ms"]["cpu"] / out[name]["ms"]["cpu"], 3),
+                }
+        res[label] = out
+    if real is None:
+        res["pixel_real_tone"] = f"unavailable: {real_error}"
+    return res
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="720p,1080p,2160p")
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--pipeline-frames", type=int, default=30)
+    ap.add_argument("--pipeline-frames", default="30,90")
+    ap.add_argument("--params-grid", default="320x160", help="calibration grid for params")
+    ap.add_argument("--skip-pipeline", action="store_true")
     args = ap.parse_args(argv)
+    counts = tuple(int(x) for x in args.pipeline_frames.split(","))
     t = time.perf_counter()
     ctx = create_context()
-    report: dict[str, object] = {
-        "renderer": ctx.info["GL_RENDERER"],
-        "cpus": os.cpu_count(),
-        "load_avg_1min": round(os.getloadavg()[0], 2),
-        "context_ms": round(1e3 * (time.perf_counter() - t), 1),
+    report: dict[str, Any] = {
+        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "machine": {
+            "cpus": os.cpu_count(),
+            "cpu": platform.processor() or platform.machine(),
+            "renderer": ctx.info["GL_RENDERER"],
+            "gl_version": ctx.info["GL_VERSION"],
+            "python": platform.python_version(),
+            "load_avg_start": [round(x, 2) for x in os.getloadavg()],
+        },
+        "context_ms": _r(time.perf_counter() - t),
     }
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
-        for name in args.sizes.split(","):
-            report[name] = bench_size(ctx, name, args.repeats, tmp)
+        sizes = args.sizes.split(",")
+        report["per_frame"] = {n: bench_size(ctx, n, args.repeats, tmp) for n in sizes}
         report["cpu_reference_1080p"] = bench_cpu_1080p(max(2, args.repeats // 2))
-        if "1080p" in report:
-            gl = report["1080p"]
+        gl = report["per_frame"].get("1080p")
+        if gl is not None:
             cpu = report["cpu_reference_1080p"]
-            assert isinstance(gl, dict)
+
+            def per_frame(m: str, k: str) -> float:
+                return gl["upload_rgb"][k] + gl[f"{m}_rgb"][k] + gl["readback"][k]
+
             report["speedup_1080p"] = {
-                m: round(cpu[f"{m}_ms"] / gl[f"{m}_ms"], 1) for m in ("pixel", "paper")
+                m: {k: round(cpu[m][k] / per_frame(m, k), 1) for k in ("wall", "cpu")}
+                for m in ("pixel", "paper")
             }
-            report["pipeline_1080p"] = bench_pipeline_1080p(ctx, tmp, args.pipeline_frames)
+        gw, gh = (int(x) for x in args.params_grid.split("x"))
+        report["params"] = bench_params(max(3, args.repeats), (gw, gh))
+        if not args.skip_pipeline:
+            report["pipeline_1080p"] = bench_pipeline_1080p(ctx, tmp, counts)  # type: ignore[arg-type]
+    report["machine"]["load_avg_end"] = [round(x, 2) for x in os.getloadavg()]
     ctx.release()
-    json.dump(report, sys.stdout, indent=2)
+    json.dump(report, sys.stdout, indent=1)
     print()
     return 0
 

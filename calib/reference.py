@@ -84,10 +84,16 @@ def lut_forward(lut: np.ndarray, levels: np.ndarray) -> np.ndarray:
 
 
 def lut_inverse(lut: np.ndarray, lo: np.ndarray, hi: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Linear interpolation in an (N, 3) inverse LUT sampled on [lo, hi]; returns 0..1."""
+    """Linear interpolation in an (N, 3) inverse LUT on [lo, hi]; returns 0..1.
+
+    The LUT is sampled uniformly in sqrt((y - lo) / (hi - lo)): responses are close to power
+    laws, whose inverse is steep near black, and the square root spreads the dark levels
+    over as many samples as the bright ones (a uniform LUT was off by up to 4 levels there).
+    """
     n = lut.shape[0]
     span = np.maximum(hi - lo, np.float32(1e-12)).astype(np.float32)
-    t = np.clip((values - lo) / span, 0.0, 1.0).astype(np.float32) * np.float32(n - 1)
+    x = np.clip((values - lo) / span, 0.0, 1.0).astype(np.float32)
+    t = np.sqrt(x) * np.float32(n - 1)
     i0 = np.minimum(np.floor(t).astype(np.int32), n - 2)
     f = t - i0
     ch = np.arange(3)

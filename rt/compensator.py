@@ -4,6 +4,24 @@
 RGBA8 framebuffer) and releases them all in :meth:`Compensator.release` (or on leaving a
 ``with`` block). It never scales: frames must be exactly the model's (H, W) grid.
 
+Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
+
+- every read in the shader is a NEAREST ``textureLod(.., 0)`` at the texel centre (llvmpipe
+  runs ``texelFetch`` ~1.5x slower); draws are flushed at once and waited for with the GIL
+  released (:func:`viewcomp.rt.context.finish`), so other threads run meanwhile;
+- the fragment shader reads no uniforms (llvmpipe pays per pixel for each component): what
+  is fixed for this object is compiled in as ``#define`` literals (one program per variant
+  and Compensator, ~0.1-0.3 s at start), what changes per frame is handed over as flat
+  inputs by the vertex shader (:meth:`Compensator._frame_values`);
+- the pixel method's 31 per-pixel maps are float32 (8 RGBA32F reads per pixel) by default.
+  ``precision="packed"`` stores them as 20-bit fixed point (:func:`pack_pixel_maps`) in 5
+  RGBA32UI texels (5 reads, 80 instead of 128 bytes; ~25 % faster on llvmpipe), error at
+  most half a step = (max - min) / (2^20 - 1) per value. That is not the default: the tone
+  map puts some pixel-channels exactly on the black bound, where the square-root sampled
+  inverse LUT has an unbounded slope, so a change of y by 1e-7 moves those by 2-4 levels
+  (invisible, the projector's response is flat there, but beyond "<= 3 levels anywhere" of
+  docs/RUNTIME.md); everything else stays within one level.
+
 Typical use::
 
     with Compensator(model) as comp:
@@ -17,18 +35,35 @@ Threading: call it from the thread whose GL context is current (the thread that 
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Iterator
+from typing import Any, Literal
 
 import moderngl
 import numpy as np
 
 from viewcomp.calib.reference import RuntimeModel, lut_forward
-from viewcomp.rt.context import create_context
+from viewcomp.rt.context import create_context, finish, flush
 from viewcomp.rt.frames import Planes, yuv_coefficients
 from viewcomp.shaders import build_program
 
 _METHODS = {"identity": 0, "pixel": 1, "paper": 2}
-_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_w0 u_w1 u_w2 u_c0 u_c1 u_c2 u_refl u_pos".split()
+_SAMPLERS = (
+    "u_rgb u_y u_uv u_fwd u_inv u_m0 u_m1 u_m2 u_m3 u_m4 u_w0 u_w1 u_w2 u_c0 u_c1 u_c2 u_refl u_pos"
+).split()
+Precision = Literal["float32", "packed"]
+
+# The 32 values per pixel of the packed maps, in shader order (compensate.frag.glsl).
+PACKED_LAYOUT = (
+    [("Ww", i, j) for i in range(3) for j in range(3)]
+    + [("Aw", i, None) for i in range(3)]
+    + [("Wc", i, j) for i in range(3) for j in range(3)]
+    + [("Ac", i, None) for i in range(3)]
+    + [("refl", i, None) for i in range(3)]
+    + [("pos", i, None) for i in range(3)]
+    + [("lobe", None, None), ("zero", None, None)]
+)
+_BITS = 20  # per packed value: 16 high bits in u_m0..u_m3, the low 4 in u_m4
+_Q = float((1 << _BITS) - 1)
 
 
 def eye_from_angle(deg: float, distance: float, height: float) -> np.ndarray:
@@ -63,6 +98,140 @@ def _f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
     return arr
 
 
+def _groups(model: RuntimeModel, cam_lobe: np.ndarray) -> list[np.ndarray]:
+    """The packed layout's source arrays as (H*W, c) views, in ``PACKED_LAYOUT`` order."""
+    n = model.shape[0] * model.shape[1]
+    return [
+        model.Ww.reshape(n, 9),  # type: ignore[union-attr]
+        model.Aw.reshape(n, 3),  # type: ignore[union-attr]
+        model.Wc.reshape(n, 9),  # type: ignore[union-attr]
+        model.Ac.reshape(n, 3),  # type: ignore[union-attr]
+        model.refl.reshape(n, 3),
+        model.pos.reshape(n, 3),
+        cam_lobe.reshape(n, 1),
+    ]  # 31 values; value 31 stays 0
+
+
+def _columns(model: RuntimeModel, cam_lobe: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
+    """(first value index, (c, H*W) contiguous copy) per group: fast reductions per value."""
+    k = 0
+    for g in _groups(model, cam_lobe):
+        yield k, np.ascontiguousarray(g.T)
+        k += g.shape[1]
+
+
+def _pixel_arrays(model: RuntimeModel) -> tuple[RuntimeModel, np.ndarray]:
+    """The pixel method's arrays checked (shape, finite, float32) and the camera's lobe."""
+    from dataclasses import replace
+
+    h, w = model.shape
+    checked = {}
+    for key in ("Ww", "Wc"):
+        if getattr(model, key) is None:
+            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
+        checked[key] = _f32(getattr(model, key), (h, w, 3, 3), key)
+    for key in ("Aw", "Ac"):
+        if getattr(model, key) is None:
+            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
+        checked[key] = _f32(getattr(model, key), (h, w, 3), key)
+    checked["refl"] = _f32(model.refl, (h, w, 3), "refl")
+    checked["pos"] = _f32(model.pos, (h, w, 3), "pos")
+    m = replace(model, **checked)
+    lobe = camera_lobe(m.refl, m.pos, _f32(model.cam_eye, (3,), "cam_eye"), model.gamma)
+    if not np.all(np.isfinite(lobe)):
+        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and gamma")
+    return m, lobe
+
+
+def field_ranges(model: RuntimeModel, cam_lobe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) over the grid of each of the 32 packed values, float32 (32,) each."""
+    lo = np.zeros(32, np.float32)
+    hi = np.zeros(32, np.float32)
+    for k, cols in _columns(model, cam_lobe):
+        c = cols.shape[0]
+        lo[k : k + c] = cols.min(axis=1)
+        hi[k : k + c] = cols.max(axis=1)
+    return lo, hi
+
+
+def pack_pixel_maps(
+    model: RuntimeModel,
+    cam_lobe: np.ndarray,
+    ranges: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The pixel method's per-pixel values as 20-bit fixed point in 5 RGBA32UI images.
+
+    Value k (``PACKED_LAYOUT``) is ``q * scale[k] + offset[k]`` with q = round((v - min) /
+    scale) in 0..2^20-1, scale = (max - min) / (2^20 - 1) over the grid. Images 0..3
+    (H, W, 4) uint32 hold the top 16 bits of q: value 8t + c in the low and 8t + 4 + c in the
+    high half of channel c of image t; image 4 holds the low 4 bits: value 8t + 4h + c in
+    bits 4 (2t + h) .. +3 of its channel c.
+
+    Returns:
+        (5 images, scale (8, 4) float32, offset (8, 4) float32).
+    """
+    h, w = model.shape
+    lo, hi = field_ranges(model, cam_lobe) if ranges is None else ranges
+    scale = ((hi.astype(np.float64) - lo) / _Q).astype(np.float32)
+    images = [np.zeros((h * w, 4), np.uint32) for _ in range(5)]
+    for k0, cols in _columns(model, cam_lobe):
+        for j in range(cols.shape[0]):
+            k = k0 + j
+            if scale[k] > 0:
+                v = cols[j] - lo[k]
+                v *= np.float32(1.0 / float(scale[k]))
+                np.rint(v, out=v)
+                np.clip(v, 0.0, _Q, out=v)
+                q = v.astype(np.uint32)
+            else:
+                q = np.zeros(h * w, np.uint32)
+            t, half, c = k // 8, (k % 8) // 4, k % 4
+            images[t][:, c] |= (q >> np.uint32(4)) << np.uint32(16 * half)
+            images[4][:, c] |= (q & np.uint32(15)) << np.uint32(4 * (2 * t + half))
+    return [img.reshape(h, w, 4) for img in images], scale.reshape(8, 4), lo.reshape(8, 4)
+
+
+def unpack_pixel_maps(
+    images: list[np.ndarray], scale: np.ndarray, offset: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The values the shader reconstructs from :func:`pack_pixel_maps` (float32; for tests)."""
+    s, o = scale.ravel(), offset.ravel()
+    h, w = images[0].shape[:2]
+    out = {
+        "Ww": np.empty((h, w, 3, 3), np.float32), "Aw": np.empty((h, w, 3), np.float32),
+        "Wc": np.empty((h, w, 3, 3), np.float32), "Ac": np.empty((h, w, 3), np.float32),
+        "refl": np.empty((h, w, 3), np.float32), "pos": np.empty((h, w, 3), np.float32),
+        "lobe": np.empty((h, w), np.float32), "zero": np.empty((h, w), np.float32),
+    }  # fmt: skip
+    for k, (name, i, j) in enumerate(PACKED_LAYOUT):
+        t, half, c = k // 8, (k % 8) // 4, k % 4
+        top = (images[t][..., c] >> np.uint32(16 * half)) & np.uint32(0xFFFF)
+        low = (images[4][..., c] >> np.uint32(4 * (2 * t + half))) & np.uint32(15)
+        q = (top << np.uint32(4)) | low
+        v = q.astype(np.float32) * np.float32(s[k]) + np.float32(o[k])
+        if j is not None:
+            out[name][..., i, j] = v
+        elif i is not None:
+            out[name][..., i] = v
+        else:
+            out[name][...] = v
+    return out
+
+
+def _lit(x: float) -> str:
+    """A float32 value as a GLSL literal that parses back to the same float32."""
+    v = float(np.float32(x))
+    if not math.isfinite(v):
+        raise ValueError(f"cannot compile the non-finite value {x!r} into the shader")
+    text = f"{v:.9g}"
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _vec(values: Any) -> str:
+    vals = [_lit(v) for v in np.asarray(values, np.float64).ravel()]
+    return f"vec{len(vals)}({', '.join(vals)})"
+
+
 class Compensator:
     """Runs the compensation shader for one :class:`RuntimeModel` on an (H, W) grid.
 
@@ -71,11 +240,27 @@ class Compensator:
             needs only the LUTs). Per-pixel arrays are uploaded once here.
         ctx: a moderngl context (>= 3.3) current on this thread; ``None`` creates a
             standalone EGL one, which this object then owns and releases.
+        precision: the pixel method's per-pixel maps: ``"float32"`` exact copies (default) or
+            ``"packed"`` 20-bit fixed point (faster, near-black caveat above).
 
-    State (uniforms) defaults: eye = ``model.cam_eye``, alpha = 1, beta = 0, compensation on.
+    State defaults: eye = ``model.cam_eye``, alpha = 1, beta = 0, compensation on.
+
+    Raises:
+        ValueError: a model of the wrong shapes or with non-finite values, naming the array.
+        GLUnavailable: ``ctx`` is None and no OpenGL 3.3 context can be made.
     """
 
-    def __init__(self, model: RuntimeModel, ctx: moderngl.Context | None = None) -> None:
+    def __init__(
+        self,
+        model: RuntimeModel,
+        ctx: moderngl.Context | None = None,
+        precision: Precision = "float32",
+    ) -> None:
+        if precision not in ("float32", "packed"):
+            raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
+        if not isinstance(model, RuntimeModel):
+            raise ValueError(f"model must be a RuntimeModel, got {type(model).__name__}")
+        self._precision = precision
         self._own_ctx = ctx is None
         self.ctx: moderngl.Context = create_context() if ctx is None else ctx
         self._objects: list[Any] = []
@@ -93,18 +278,23 @@ class Compensator:
 
     def _tex(self, size: tuple[int, int], comps: int, dtype: str, data: Any = None) -> Any:
         tex = self._track(self.ctx.texture(size, comps, data, dtype=dtype, alignment=1))
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # texelFetch only; integer textures
-        tex.repeat_x = tex.repeat_y = False  # need NEAREST to be complete
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # reads at texel centres only
+        tex.repeat_x = tex.repeat_y = True  # never used (centres lie inside); a bit cheaper
         return tex
 
     def _setup(self, model: RuntimeModel) -> None:
         if model.method not in _METHODS:
             raise ValueError(f"model.method must be one of {sorted(_METHODS)}, got {model.method}")
+        if np.ndim(model.refl) != 3 or np.shape(model.refl)[2] != 3:
+            raise ValueError(f"refl must be (H, W, 3), got {np.shape(model.refl)}")
         h, w = model.shape
         self.method: str = model.method
         self.height, self.width = h, w
         max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        n_inv = int(np.asarray(model.inv_lut).shape[0])
+        inv_lut = np.asarray(model.inv_lut)
+        if inv_lut.ndim != 2 or inv_lut.shape[1] != 3:
+            raise ValueError(f"inv_lut must be (N, 3), got {inv_lut.shape}")
+        n_inv = int(inv_lut.shape[0])
         if max(w, h, n_inv) > max_size:
             raise ValueError(
                 f"grid {w}x{h} / inverse LUT of {n_inv} entries exceeds GL_MAX_TEXTURE_SIZE "
@@ -113,10 +303,9 @@ class Compensator:
         if n_inv < 2:
             raise ValueError(f"inv_lut needs at least 2 entries, got {n_inv}")
         self._n_inv = n_inv
-
-        self._uniforms: dict[str, Any] = {}
-        self._programs: dict[tuple[int, int], tuple[Any, Any]] = {}
+        self._programs: dict[tuple[Any, ...], tuple[Any, Any]] = {}
         self._input = 0
+        self._flip_y = 0
         self._color = self._track(self.ctx.renderbuffer((w, h), 4, dtype="f1"))
         self.fbo = self._track(self.ctx.framebuffer(color_attachments=[self._color]))
 
@@ -127,71 +316,87 @@ class Compensator:
         self._uv_host = np.empty((ch, cw, 2), np.uint8)
         fwd = _f32(model.fwd_lut, (256, 3), "fwd_lut")
         levels = np.broadcast_to(np.arange(256, dtype=np.float32)[:, None], (256, 3))
-        fwd4 = np.zeros((256, 4), np.float32)
-        fwd4[:, :3] = lut_forward(fwd, levels)  # exact values at integer levels
-        self._fwd = self._tex((256, 1), 4, "f4", fwd4)
-        self._inv = self._tex((n_inv, 3), 2, "f4", _inv_pairs(model.inv_lut, n_inv))
+        fwd_rows = np.ascontiguousarray(lut_forward(fwd, levels).T)  # exact at integer levels
+        self._fwd = self._tex((256, 3), 1, "f4", fwd_rows)
+        self._inv = self._tex((n_inv, 3), 2, "f4", _inv_pairs(inv_lut, n_inv))
         units: dict[str, Any] = {
             "u_rgb": self._rgb, "u_y": self._y, "u_uv": self._uv,
             "u_fwd": self._fwd, "u_inv": self._inv,
         }  # fmt: skip
+        # Compiled-in constants (#define NAME literal) of every variant of this object.
+        self._consts: dict[str, str | int] = {"GRID_W": w, "GRID_H": h, "N_INV": n_inv}
+        self.packed = False
+        self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
+        self._inv_lo = _f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
+        self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
         if model.method == "pixel":
             units.update(self._upload_pixel_maps(model))
-        self._units = [(i, units.get(name)) for i, name in enumerate(_SAMPLERS)]
-
-        self._set("u_size", (w, h))
-        self._set("u_origin", (0, 0))
-        self._set("u_flip_y", 0)
-        self.identity = False
-        self._set("u_inv_lo", tuple(_f32(model.inv_lo, (3,), "inv_lo")))
-        self._set("u_inv_hi", tuple(_f32(model.inv_hi, (3,), "inv_hi")))
-        self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
-        if model.method == "pixel":
-            self._set("u_kappa", tuple(_f32(model.kappa, (3,), "kappa")))
-            self._set("u_gamma", float(model.gamma))
+            self._consts["KAPPA"] = _vec(_f32(model.kappa, (3,), "kappa"))
+            if not math.isfinite(float(model.gamma)):
+                raise ValueError(f"gamma must be finite, got {model.gamma}")
+            self._consts["GAMMA"] = _lit(model.gamma)
+            self._consts["INV_LO"] = _vec(self._inv_lo)
+            self._consts["INV_SCALE"] = _vec(self._inv_scale())
         if model.method == "paper":
-            self._set("u_Ww", tuple(_f32(model.Ww, (3, 3), "Ww").T.ravel()))  # column-major
+            self._Ww = _f32(model.Ww, (3, 3), "Ww").astype(np.float64)
             if model.Wc_inv is None:
                 raise ValueError("paper method needs model.Wc_inv (3, 3)")
-            self._set("u_Wc_inv", tuple(_f32(model.Wc_inv, (3, 3), "Wc_inv").T.ravel()))
+            self._Wc_inv = _f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+        self._units = [(i, units.get(name)) for i, name in enumerate(_SAMPLERS)]
+        self.identity = False
         self.set_eye(*self._cam_eye)
         self.set_tone(1.0, 0.0)
-        self._yuv_key: tuple[str, str] | None = None
-        self._readback = np.empty((h, w, 4), np.uint8)
+        self._yuv_key: tuple[str, str] = ("bt709", "limited")
+
+    def _inv_scale(self) -> np.ndarray:
+        """(N - 1) / (hi - lo) per channel: inverse-LUT positions per unit of value."""
+        span = np.maximum(self._inv_hi - self._inv_lo, 1e-12)
+        return (self._n_inv - 1) / span
 
     def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
         h, w = model.shape
+        m, lobe = _pixel_arrays(model)
         units: dict[str, Any] = {}
-        for key, mat, amb in (("w", model.Ww, model.Aw), ("c", model.Wc, model.Ac)):
-            if mat is None or amb is None:
-                raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
-            m = _f32(mat, (h, w, 3, 3), f"W{key}")
-            a = _f32(amb, (h, w, 3), f"A{key}")
+        if self._precision == "packed":
+            images, scale, offset = pack_pixel_maps(m, lobe)
+            for t, img in enumerate(images):
+                units[f"u_m{t}"] = self._tex((w, h), 4, "u4", img)
+            del images
+            for k in range(8):
+                self._consts[f"Q_SCALE{k}"] = _vec(scale[k])
+                self._consts[f"Q_OFFSET{k}"] = _vec(offset[k])
+            self.packed = True
+            return units
+        for key, mat, amb in (("w", m.Ww, m.Aw), ("c", m.Wc, m.Ac)):
             for row in range(3):
                 rgba = np.empty((h, w, 4), np.float32)
-                rgba[..., :3] = m[:, :, row, :]
-                rgba[..., 3] = a[..., row]
+                rgba[..., :3] = mat[:, :, row, :]
+                rgba[..., 3] = amb[..., row]
                 units[f"u_{key}{row}"] = self._tex((w, h), 4, "f4", rgba)
-        refl = _f32(model.refl, (h, w, 3), "refl")
-        pos = _f32(model.pos, (h, w, 3), "pos")
         rgba = np.zeros((h, w, 4), np.float32)
-        rgba[..., :3] = refl
+        rgba[..., :3] = m.refl
         units["u_refl"] = self._tex((w, h), 4, "f4", rgba)
         rgba = np.empty((h, w, 4), np.float32)
-        rgba[..., :3] = pos
-        rgba[..., 3] = camera_lobe(refl, pos, _f32(model.cam_eye, (3,), "cam_eye"), model.gamma)
+        rgba[..., :3] = m.pos
+        rgba[..., 3] = lobe
         units["u_pos"] = self._tex((w, h), 4, "f4", rgba)
         return units
 
-    def _set(self, name: str, value: Any) -> None:
-        """Record a uniform; it is written into the variant's program before each draw."""
-        self._uniforms[name] = value
-
     def _program(self) -> tuple[Any, Any]:
         """(program, vertex array) of the current (method, input) variant, compiled once."""
-        key = (self._uniforms["u_method"], self._input)
+        method = 0 if self._identity else _METHODS[self.method]
+        yuv = self._yuv_key if self._input == 1 else None
+        key = (method, self._input, yuv)
         if key not in self._programs:
-            prog = self._track(build_program(self.ctx, defines={"METHOD": key[0], "INPUT": key[1]}))
+            defines: dict[str, str | int | float] = {
+                **self._consts, "METHOD": method, "INPUT": self._input,
+                "PACKED": int(self.packed),
+            }  # fmt: skip
+            if yuv is not None:
+                k = yuv_coefficients(*yuv)  # type: ignore[arg-type]
+                defines["YUV_K"] = f"ivec4({k.cy}, {k.cr_r}, {k.cb_b}, {k.y_off})"
+                defines["YUV_KG"] = f"ivec2({k.cb_g}, {k.cr_g})"
+            prog = self._track(build_program(self.ctx, defines=defines))
             vao = self._track(self.ctx.vertex_array(prog, []))
             for i, name in enumerate(_SAMPLERS):  # distinct units: sampler types differ
                 if name in prog:
@@ -199,11 +404,30 @@ class Compensator:
             self._programs[key] = (prog, vao)
         return self._programs[key]
 
+    def _frame_values(self) -> bytes:
+        """The per-frame inputs v_frame[4] (vec4 each) of the current variant, as bytes."""
+        out = np.zeros((4, 4), np.float32)
+        if self._identity:
+            pass
+        elif self.method == "pixel":
+            out[0, :3] = self.eye
+            out[0, 3] = self.alpha
+            out[1, 0] = self.beta
+        elif self.method == "paper":
+            s = self._inv_scale()
+            a = s[:, None] * (self.alpha * (self._Wc_inv @ self._Ww))
+            c = s * (self.beta * self._Wc_inv.sum(axis=1) - self._inv_lo)
+            out[:3, :3] = a
+            out[:3, 3] = c
+        return out.tobytes()
+
     def _draw(self) -> None:
         prog, vao = self._program()
-        for name, value in self._uniforms.items():
-            if name in prog:  # the GLSL compiler drops what a variant does not use
-                prog[name].value = value
+        if "u_frame" in prog:  # the linker may keep only the elements a variant reads
+            u = prog["u_frame"]
+            u.write(self._frame_values()[: 16 * max(1, u.array_length)])
+        if "u_flip_y" in prog:
+            prog["u_flip_y"].value = self._flip_y
         for unit, tex in self._units:
             if tex is not None:
                 tex.use(unit)
@@ -218,12 +442,13 @@ class Compensator:
     @identity.setter
     def identity(self, on: bool) -> None:
         self._identity = bool(on)
-        self._set("u_method", 0 if self._identity else _METHODS[self.method])
 
     def set_eye(self, x: float, y: float, z: float) -> None:
         """Eye position in metres (world frame of MODEL.md)."""
-        self.eye = np.array([x, y, z], np.float32)
-        self._set("u_eye", (float(x), float(y), float(z)))
+        eye = np.array([x, y, z], np.float32)
+        if not np.all(np.isfinite(eye)):
+            raise ValueError(f"the eye must be three finite numbers, got {(x, y, z)}")
+        self.eye = eye
 
     def set_angle(self, deg: float, distance: float, height: float) -> None:
         """Eye from a viewing angle: E = (d cos t, h, d sin t); degrees and metres."""
@@ -231,9 +456,9 @@ class Compensator:
 
     def set_tone(self, alpha: float, beta: float) -> None:
         """Tone map T = alpha * C_w + beta (Eq. 21), linear camera units."""
+        if not (math.isfinite(alpha) and math.isfinite(beta)):
+            raise ValueError(f"alpha and beta must be finite, got {alpha}, {beta}")
         self.alpha, self.beta = float(alpha), float(beta)
-        self._set("u_alpha", self.alpha)
-        self._set("u_beta", self.beta)
 
     def update_model(
         self,
@@ -244,16 +469,19 @@ class Compensator:
     ) -> None:
         """Per-eye updates (paper method): (W~_c)^-1 (3, 3) and rho_c^-1 (N, 3) on [lo, hi].
 
-        Small uploads into the existing objects; ``inv_lut`` must keep its N entries.
+        Small uploads into the existing objects; ``inv_lut`` must keep its N entries. The
+        pixel method's LUT domain is compiled in: it takes ``inv_lut`` only.
         """
+        if self.method == "pixel" and (inv_lo is not None or inv_hi is not None):
+            raise ValueError("the pixel method's inverse LUT domain is fixed: make a new one")
         if Wc_inv is not None:
-            self._set("u_Wc_inv", tuple(_f32(Wc_inv, (3, 3), "Wc_inv").T.ravel()))
+            self._Wc_inv = _f32(Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
         if inv_lut is not None:
             self._inv.write(_inv_pairs(inv_lut, self._n_inv))
         if inv_lo is not None:
-            self._set("u_inv_lo", tuple(_f32(inv_lo, (3,), "inv_lo")))
+            self._inv_lo = _f32(inv_lo, (3,), "inv_lo").astype(np.float64)
         if inv_hi is not None:
-            self._set("u_inv_hi", tuple(_f32(inv_hi, (3,), "inv_hi")))
+            self._inv_hi = _f32(inv_hi, (3,), "inv_hi").astype(np.float64)
 
     # ----------------------------------------------------------------- per frame
     def upload(self, frame: np.ndarray) -> None:
@@ -274,32 +502,39 @@ class Compensator:
                 f"planes must be {(self.height, self.width)}, got {planes.shape} "
                 "(the video reader fits frames to the grid)"
             )
+        yuv_coefficients(planes.colorspace, planes.color_range)  # validates both
         self._y.write(np.ascontiguousarray(planes.y))
-        self._uv_host[..., 0] = planes.u  # interleave: one chroma texture, half the fetches
+        self._uv_host[..., 0] = planes.u  # interleave: one chroma texture, half the reads
         self._uv_host[..., 1] = planes.v
         self._uv.write(self._uv_host)
-        key = (planes.colorspace, planes.color_range)
-        if key != self._yuv_key:
-            k = yuv_coefficients(*key)
-            self._set("u_yuv_k", (k.cy, k.cr_r, k.cb_b, k.y_off))
-            self._set("u_yuv_kg", (k.cb_g, k.cr_g))
-            self._yuv_key = key
+        self._yuv_key = (planes.colorspace, planes.color_range)
         self._input = 1
 
     def draw(self) -> None:
-        """Run the shader on the last upload into the own framebuffer."""
+        """Run the shader on the last upload into the own framebuffer.
+
+        Returns at once: the draw is flushed to the driver, which renders on its own threads
+        (llvmpipe) while the caller does other work; :meth:`read` waits for it.
+        """
         self.fbo.use()
         self.ctx.viewport = (0, 0, self.width, self.height)
-        self._set("u_origin", (0, 0))
-        self._set("u_flip_y", 0)
+        self._flip_y = 0
         self._draw()
+        flush(self.ctx)
 
     def read(self, out: np.ndarray | None = None) -> np.ndarray:
-        """Read back the last draw as (H, W, 3) uint8 (into ``out`` if given)."""
-        self.fbo.read_into(self._readback, components=4, alignment=1)
+        """Read back the last draw as (H, W, 3) uint8 (into ``out`` if given, no copy).
+
+        Waits for the draw with the GIL released (:func:`viewcomp.rt.context.finish`), so
+        other Python threads (decoder, encoder) run meanwhile.
+        """
+        shape = (self.height, self.width, 3)
         if out is None:
-            return self._readback[..., :3].copy()
-        np.copyto(out, self._readback[..., :3])
+            out = np.empty(shape, np.uint8)
+        elif out.shape != shape or out.dtype != np.uint8 or not out.flags.c_contiguous:
+            raise ValueError(f"out must be a C-contiguous uint8 array {shape}, got {out.shape}")
+        finish(self.ctx)
+        self.fbo.read_into(out, components=3, alignment=1)
         return out
 
     def render(self, frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -338,8 +573,7 @@ class Compensator:
         """
         framebuffer.use()
         self.ctx.viewport = (origin[0], origin[1], self.width, self.height)
-        self._set("u_origin", origin)
-        self._set("u_flip_y", 1 if flip_y else 0)
+        self._flip_y = 1 if flip_y else 0
         self._draw()
 
     # ----------------------------------------------------------------- lifetime

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+from typing import Any
 
 import moderngl
 
@@ -36,6 +37,46 @@ def create_context(require: int = 330) -> moderngl.Context:
         ) from exc
     ctx.gc_mode = "context_gc"
     return ctx
+
+
+_GL_FUNCS: dict[bytes, Any] = {}
+
+
+def _gl_void(name: bytes) -> Any:
+    """A GL entry point ``void name(void)`` through eglGetProcAddress (ctypes), or None."""
+    if name not in _GL_FUNCS:
+        fn = None
+        try:
+            egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
+            egl.eglGetProcAddress.restype = ctypes.c_void_p
+            egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+            addr = egl.eglGetProcAddress(name)
+            fn = ctypes.CFUNCTYPE(None)(addr) if addr else None
+        except OSError:
+            fn = None
+        _GL_FUNCS[name] = fn
+    return _GL_FUNCS[name]
+
+
+def finish(ctx: moderngl.Context) -> None:
+    """``glFinish`` without holding Python's GIL (moderngl's ``ctx.finish()`` holds it).
+
+    On llvmpipe a draw runs on the driver's threads while the caller waits here; through
+    ctypes (which releases the GIL around the call) the decoder and encoder threads keep
+    running Python meanwhile. Falls back to ``ctx.finish()`` without an EGL ``glFinish``.
+    """
+    fn = _gl_void(b"glFinish")
+    if fn is not None:
+        fn()
+    else:
+        ctx.finish()
+
+
+def flush(ctx: moderngl.Context) -> None:
+    """``glFlush``: start the queued draws now (llvmpipe renders on its own threads)."""
+    fn = _gl_void(b"glFlush")
+    if fn is not None:
+        fn()
 
 
 _IS_FUNCS = {

@@ -1,5 +1,8 @@
 """CPU-side frames: yuv420p planes, their conversion to RGB, thumbnails and fitting.
 
+RGB thumbnails are ``viewcomp.calib.compensation.thumbnail``; :func:`thumbnail_planes` makes
+the video frames' ones straight from the planes.
+
 No GL here. The yuv420p -> RGB conversion is fixed point and bit-exact with
 ``shaders/yuv.glsl``: the GL backend converts in the shader, the CPU backend calls
 :func:`yuv420p_to_rgb`, and both compensate the very same 8-bit RGB levels.
@@ -184,14 +187,6 @@ def thumbnail_planes(planes: Planes, max_side: int = 64) -> np.ndarray:
     cb = (us.astype(np.int32) - 128) * 8
     cr = (vs.astype(np.int32) - 128) * 8
     return _levels(y8, cb, cr, k)
-
-
-def thumbnail_rgb(rgb: np.ndarray, max_side: int = 64) -> np.ndarray:
-    """A small RGB thumbnail (h, w, 3) uint8 of an RGB frame, longest side <= max_side."""
-    h, w = rgb.shape[:2]
-    s = min(1.0, max_side / max(h, w))
-    size = (max(1, round(w * s)), max(1, round(h * s)))
-    return cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
 
 
 def fit_rect(

@@ -2,28 +2,31 @@
 
 One function, :func:`render_file`, for both backends and for images and videos::
 
-    decode (worker thread) -> fit to the grid -> thumbnail -> tone(thumb) -> (alpha, beta)
-        -> eye = eye_track(t) -> model = model_provider(eye)
+    decode (worker thread) -> fit to the grid -> thumbnail -> eye = eye_track(t)
+        -> p = comp(thumb, eye, t)               (model, alpha, beta for this frame)
         -> compensate (GL Compensator, or viewcomp.calib.reference.compensate)
-        -> encode (PNG, or PyAV video with the audio carried over)
+        -> encode (PNG, or PyAV video on its own thread, audio carried over)
 
 Interfaces decided here (for the CLI wiring):
 
-- ``model_provider``: a :class:`RuntimeModel`, or a callable ``eye (3,) -> RuntimeModel``
-  called once per frame. For ``paper`` it returns the model whose ``Wc_inv``/``inv_lut``/
-  ``inv_lo``/``inv_hi`` fit that eye (cache it; return the *same object* while nothing
-  changed: the GL backend re-uploads those only when the object changes). The per-pixel
-  arrays and the grid must stay the same for the whole file.
-- ``eye_track``: callable ``t_seconds -> eye (3,)`` metres; see :mod:`viewcomp.rt.tracks`
-  (constant angle/eye, or a CSV of (seconds, degrees)). Images use t = 0.
-- ``tone``: callable ``thumbnail (h, w, 3) uint8 -> (alpha, beta)`` called once per frame in
-  order (it may smooth over time); None means (1, 0). The thumbnail is the frame as the
-  compensator sees it (after fitting; for video after the shared yuv -> RGB conversion),
-  longest side ~64 pixels; both backends compute it identically.
-- ``identity``: the very same pipeline with compensation switched off (A/B and timing).
+- ``comp``: the frame parameters, duck-typed like
+  :class:`viewcomp.calib.compensation.Compensation`: ``shape`` (H, W), ``method``
+  (``"pixel"``/``"paper"``), ``base_model()`` (a model of the right method and grid, used to
+  set the GL side up) and ``comp(thumb, eye, t) -> FrameParams`` with ``model``, ``alpha``,
+  ``beta``, called once per frame in order (it may smooth over time: the lead builds it with
+  ``tau`` for video). For ``paper`` the model changes with the eye; the GL backend
+  re-uploads its ``Wc_inv``/``inv_lut``/``inv_lo``/``inv_hi`` only when ``p.model is not``
+  the previous one (Compensation caches models). Grid and method stay fixed per file.
+- ``eye_track``: callable ``t_seconds -> eye (3,)`` metres; see :mod:`viewcomp.rt.tracks`.
+  Images use t = 0 for the eye and no time for ``comp`` (no smoothing).
+- Thumbnails: images use ``viewcomp.calib.compensation.thumbnail`` (area average); video
+  frames :func:`viewcomp.rt.frames.thumbnail_planes` at the same size (nearest on the
+  planes, cheap), identical for both backends.
+- ``identity``: the very same decode/upload/shader/read-back/encode with compensation off;
+  ``comp`` is not called (nothing to compensate).
 - Images: any OpenCV-readable file in (8-bit RGB after decoding); the output must be ``.png``
   (8-bit RGB at the grid size). Videos: anything PyAV decodes; output container from the
-  extension, codec/crf selectable, frame rate, frame count and audio kept.
+  extension, codec/CRF/preset selectable, frame rate, frame count and audio kept.
 - Outputs are written to a temporary file next to the output and renamed at the end; on any
   error nothing is left at (or next to) the output path.
 """
@@ -32,31 +35,51 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal, Protocol
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
+from viewcomp.calib.compensation import THUMB_SIDE, thumbnail
 from viewcomp.calib.reference import RuntimeModel, compensate
-from viewcomp.rt.frames import (
-    Planes,
-    fit_rgb,
-    thumbnail_planes,
-    thumbnail_rgb,
-    yuv420p_to_rgb,
-)
+from viewcomp.rt.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
 from viewcomp.rt.tracks import EyeTrack
-from viewcomp.rt.video import AudioItem, VideoReader, VideoWriter, temp_path_for
+from viewcomp.rt.video import (
+    DEFAULT_PRESET,
+    AudioItem,
+    EncodeThread,
+    VideoReader,
+    VideoWriter,
+    temp_path_for,
+)
 
 Backend = Literal["gl", "cpu"]
-ModelProvider = RuntimeModel | Callable[[np.ndarray], RuntimeModel]
-Tone = Callable[[np.ndarray], tuple[float, float]]
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+
+class FrameParamsLike(Protocol):
+    """What ``comp(thumb, eye, t)`` returns (``viewcomp.calib.compensation.FrameParams``)."""
+
+    model: RuntimeModel
+    alpha: float
+    beta: float
+
+
+class CompensationLike(Protocol):
+    """The per-frame parameters (``viewcomp.calib.compensation.Compensation``)."""
+
+    method: str
+
+    @property
+    def shape(self) -> tuple[int, int]: ...
+
+    def base_model(self) -> RuntimeModel: ...
+
+    def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> Any: ...
 
 
 class ImageError(RuntimeError):
@@ -65,11 +88,18 @@ class ImageError(RuntimeError):
 
 @dataclass(frozen=True)
 class RenderStats:
-    """What :func:`render_file` did: ``frames`` rendered in ``seconds`` wall time."""
+    """What :func:`render_file` did.
+
+    ``frames`` rendered in ``seconds`` wall time; ``startup_seconds`` until the first frame
+    was handed to the encoder (context, shader compile, uploads, first decode);
+    ``params_seconds`` spent in ``comp(thumb, eye, t)`` (thumbnail included).
+    """
 
     kind: Literal["image", "video"]
     frames: int
     seconds: float
+    startup_seconds: float = 0.0
+    params_seconds: float = 0.0
 
     @property
     def fps(self) -> float:
@@ -82,50 +112,128 @@ def is_image(path: str | os.PathLike[str]) -> bool:
     return Path(path).suffix.lower() in IMAGE_SUFFIXES
 
 
-class _Backend:
-    """Per-frame compensation with one backend; owns the Compensator for ``gl``."""
+class _Engine:
+    """Per-frame compensation with one backend; owns the Compensator for ``gl``.
 
-    def __init__(self, backend: Backend, model: RuntimeModel, identity: bool, ctx: object):
+    Per frame: :meth:`set_params` (recorded), :meth:`submit` (GL: upload and draw, which
+    renders on the driver's threads; CPU: compute), :meth:`collect` (GL: wait, read back).
+    Between submit and collect the caller may prepare the next frame's parameters.
+    """
+
+    def __init__(
+        self,
+        backend: Backend,
+        model: RuntimeModel,
+        identity: bool,
+        ctx: Any,
+        precision: str = "float32",
+    ) -> None:
         if backend not in ("gl", "cpu"):
             raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
         self.backend = backend
         self.identity = identity
-        self.model = model
-        self.comp = None
+        self.model = model  # what the GL side holds
+        self.next_model = model  # what the next submit uses
+        self.ctx = ctx
+        self.precision = precision
+        self.alpha, self.beta = 1.0, 0.0
+        self.eye = np.asarray(model.cam_eye, np.float32)
+        self.gl: Any = None
+        self._result: np.ndarray | None = None
         if backend == "gl":
-            from viewcomp.rt.compensator import Compensator  # GL only when asked for
+            self._make_gl(model)
 
-            self.comp = Compensator(model, ctx)  # type: ignore[arg-type]
-            self.comp.identity = identity
-            h, w = model.shape
-            self.out = np.empty((h, w, 3), np.uint8)
+    def _make_gl(self, model: RuntimeModel) -> None:
+        from viewcomp.rt.compensator import Compensator  # GL only when asked for
 
-    def set_model(self, model: RuntimeModel) -> None:
-        if model is self.model:
-            return
-        if model.shape != self.model.shape or model.method != self.model.method:
-            raise ValueError("model_provider changed the grid or the method within one file")
-        self.model = model
-        if self.comp is not None and model.method == "paper":
-            self.comp.update_model(model.Wc_inv, model.inv_lut, model.inv_lo, model.inv_hi)
+        if self.gl is not None:
+            self.gl.release()
+            self.gl = None
+        self.gl = Compensator(model, self.ctx, precision=self.precision)  # type: ignore[arg-type]
+        self.gl.identity = self.identity
 
-    def run(self, frame: np.ndarray | Planes, eye: np.ndarray, alpha: float, beta: float):
-        if self.comp is None:
+    def set_params(self, p: FrameParamsLike | None, eye: np.ndarray) -> None:
+        """The next frame's model, tone map (None: keep) and eye."""
+        if p is not None:
+            model = p.model
+            if model is not self.next_model and (
+                model.shape != self.model.shape or model.method != self.model.method
+            ):
+                raise ValueError(
+                    f"comp changed the grid or the method within one file: "
+                    f"{self.model.method} {self.model.shape} -> {model.method} {model.shape}"
+                )
+            self.next_model = model
+            self.alpha, self.beta = float(p.alpha), float(p.beta)
+        self.eye = np.asarray(eye, np.float32)
+
+    def submit(self, frame: np.ndarray | Planes) -> None:
+        """Start compensating one frame (RGB or yuv420p planes, on the grid)."""
+        model = self.next_model
+        if self.gl is None:
             rgb = yuv420p_to_rgb(frame) if isinstance(frame, Planes) else frame
-            return compensate(self.model, rgb, eye, alpha, beta, identity=self.identity)
-        self.comp.set_eye(*eye)
-        self.comp.set_tone(alpha, beta)
+            self.model = model
+            self._result = compensate(model, rgb, self.eye, self.alpha, self.beta, self.identity)
+            return
+        if model is not self.model:  # after the previous frame was read: no stall
+            if model.method == "paper":
+                self.gl.update_model(model.Wc_inv, model.inv_lut, model.inv_lo, model.inv_hi)
+            else:  # a new per-pixel model: new maps, new compensator (not expected)
+                self._make_gl(model)
+            self.model = model
+        self.gl.set_eye(*self.eye)
+        self.gl.set_tone(self.alpha, self.beta)
         if isinstance(frame, Planes):
-            return self.comp.render_planes(frame, out=self.out)
-        return self.comp.render(frame, out=self.out)
+            self.gl.upload_planes(frame)
+        else:
+            self.gl.upload(frame)
+        self.gl.draw()
+
+    def collect(self, out: np.ndarray | None = None) -> np.ndarray:
+        """The submitted frame's result (H, W, 3) uint8 (into ``out`` if given)."""
+        if self.gl is None:
+            res, self._result = self._result, None
+            if res is None:
+                raise RuntimeError("collect() without submit()")
+            if out is None:
+                return res
+            np.copyto(out, res)
+            return out
+        return self.gl.read(out)
+
+    def run(self, frame: np.ndarray | Planes, out: np.ndarray | None = None) -> np.ndarray:
+        """submit + collect."""
+        self.submit(frame)
+        return self.collect(out)
 
     def release(self) -> None:
-        if self.comp is not None:
-            self.comp.release()
+        if self.gl is not None:
+            self.gl.release()
+            self.gl = None
+
+
+def _check_comp(comp: CompensationLike) -> RuntimeModel:
+    """The base model of ``comp``, checked against its declared grid and method."""
+    missing = [a for a in ("shape", "method", "base_model") if not hasattr(comp, a)]
+    if missing or not callable(comp):
+        raise TypeError(
+            "comp must be a viewcomp.calib.compensation.Compensation (or act like one: "
+            "shape, method, base_model(), __call__(thumb, eye, t)); "
+            f"{type(comp).__name__} lacks {missing or ['__call__']}"
+        )
+    model = comp.base_model()
+    if not isinstance(model, RuntimeModel):
+        raise TypeError(f"comp.base_model() must return a RuntimeModel, got {type(model)}")
+    if tuple(model.shape) != tuple(comp.shape) or model.method != comp.method:
+        raise ValueError(
+            f"comp says {comp.method} on {tuple(comp.shape)} but its base model is "
+            f"{model.method} on {model.shape}"
+        )
+    return model
 
 
 def render_file(
-    model_provider: ModelProvider,
+    comp: CompensationLike,
     input_path: str | os.PathLike[str],
     output_path: str | os.PathLike[str],
     eye_track: EyeTrack,
@@ -133,60 +241,68 @@ def render_file(
     identity: bool = False,
     crf: float = 18,
     codec: str = "libx264",
+    preset: str = DEFAULT_PRESET,
     progress: bool = True,
-    tone: Tone | None = None,
-    ctx: object = None,
+    ctx: Any = None,
+    precision: str = "float32",
 ) -> RenderStats:
     """Compensate an image or a video file for the projector (see the module docstring).
 
     Args:
-        model_provider: RuntimeModel, or ``eye -> RuntimeModel`` (per frame).
+        comp: the frame parameters (a ``Compensation`` for one calibration and method).
         input_path: image (by extension, :data:`IMAGE_SUFFIXES`) or video.
         output_path: ``.png`` for an image; a video container (``.mp4``, ``.mkv``) for video.
         eye_track: ``t_seconds -> eye (3,)`` metres.
         backend: ``"gl"`` (shader, default) or ``"cpu"`` (numpy reference).
-        identity: run the same pipeline with compensation off.
-        crf, codec: video encoder settings (H.264 via libx264, CRF 18 by default).
+        identity: run the same pipeline with compensation off (``comp`` is not called).
+        crf, codec, preset: video encoder settings (H.264 via libx264, CRF 18, preset
+            ``veryfast`` by default; the preset applies to libx264/libx265).
         progress: show a tqdm bar with frames per second (stderr).
-        tone: ``thumbnail -> (alpha, beta)``; None = (1, 0).
         ctx: an existing moderngl context for the GL backend (else one is made and freed).
+        precision: the GL pixel method's maps, ``"float32"`` (exact) or ``"packed"`` (20-bit,
+            ~25 % faster shader; see :class:`viewcomp.rt.compensator.Compensator`).
 
     Returns:
-        RenderStats (frames rendered, wall seconds).
+        RenderStats (frames rendered, wall seconds, start-up, time in ``comp``).
 
     Raises:
         VideoError / ImageError: unreadable input or unwritable output (nothing left behind).
         GLUnavailable: ``backend="gl"`` without a usable OpenGL 3.3 (EGL) driver.
+        ValueError / TypeError: ``comp`` is not usable (wrong kind, inconsistent model).
     """
     t_start = time.perf_counter()
-    provider: Callable[[np.ndarray], RuntimeModel]
-    if isinstance(model_provider, RuntimeModel):
-        const = model_provider
-        provider = lambda eye: const  # noqa: E731
-    else:
-        provider = model_provider
-    tone_fn: Tone = tone if tone is not None else (lambda thumb: (1.0, 0.0))
+    if backend not in ("gl", "cpu"):
+        raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
+    if precision not in ("float32", "packed"):
+        raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
+    model = _check_comp(comp)
     src, dst = Path(input_path), Path(output_path)
-    eye0 = np.asarray(eye_track(0.0), np.float32)
-    model = provider(eye0)
     if is_image(src):
         if dst.suffix.lower() != ".png":
             raise ImageError(f"image output must be a .png file, got {dst}")
         frame = _read_image(src, model.shape)
-        eng = _Backend(backend, model, identity, ctx)
+        eye0 = np.asarray(eye_track(0.0), np.float32)
+        t_params = 0.0
+        eng = _Engine(backend, model, identity, ctx, precision)
         try:
-            alpha, beta = tone_fn(thumbnail_rgb(frame))
-            out = eng.run(frame, eye0, alpha, beta)
+            params = None
+            if not identity:
+                t = time.perf_counter()
+                params = comp(thumbnail(frame), eye0)
+                t_params = time.perf_counter() - t
+            eng.set_params(params, eye0)
+            out = eng.run(frame)
         finally:
             eng.release()
         _write_png(dst, out)
-        return RenderStats("image", 1, time.perf_counter() - t_start)
-    return _render_video(provider, model, src, dst, eye_track, backend, identity, crf, codec,
-                         progress, tone_fn, ctx, t_start)  # fmt: skip
+        seconds = time.perf_counter() - t_start
+        return RenderStats("image", 1, seconds, seconds, t_params)
+    return _render_video(comp, model, src, dst, eye_track, backend, identity, crf, codec,
+                         preset, progress, ctx, t_start, precision)  # fmt: skip
 
 
 def _render_video(
-    provider: Callable[[np.ndarray], RuntimeModel],
+    comp: CompensationLike,
     model: RuntimeModel,
     src: Path,
     dst: Path,
@@ -195,38 +311,88 @@ def _render_video(
     identity: bool,
     crf: float,
     codec: str,
+    preset: str,
     progress: bool,
-    tone: Tone,
-    ctx: object,
+    ctx: Any,
     t_start: float,
+    precision: str,
 ) -> RenderStats:
     h, w = model.shape
+    clock = {"params": 0.0, "first": None}
+
     with VideoReader(src, fit=(w, h)) as reader:
         info = reader.info
-        eng = _Backend(backend, model, identity, ctx)
+        eng = _Engine(backend, model, identity, ctx, precision)
         try:
-            with VideoWriter(dst, w, h, info.rate, codec=codec, crf=crf,
-                             colorspace=info.colorspace, audio=reader.audio_stream,
-                             audio_start=info.start) as writer:  # fmt: skip
+            writer = VideoWriter(dst, w, h, info.rate, codec=codec, crf=crf,
+                                 colorspace=info.colorspace, audio=reader.audio_stream,
+                                 audio_start=info.start, preset=preset)  # fmt: skip
+            with EncodeThread(writer, (h, w, 3)) as enc:
                 reader.audio_mode = writer.audio_mode
                 bar = tqdm(total=info.frames, unit="frame", disable=not progress,
                            desc=src.name, dynamic_ncols=True)  # fmt: skip
                 try:
-                    for item in reader:
-                        if isinstance(item, AudioItem):
-                            writer.write_audio(item)
-                            continue
-                        eye = np.asarray(eye_track(item.time), np.float32)
-                        eng.set_model(provider(eye))
-                        alpha, beta = tone(thumbnail_planes(item))
-                        writer.write(eng.run(item, eye, alpha, beta))
-                        bar.update(1)
+                    _video_loop(reader, comp, eng, enc, eye_track, identity, bar, clock, t_start)
                 finally:
                     bar.close()
-                frames = writer.frames_written
+            frames = enc.frames_written
         finally:
             eng.release()
-    return RenderStats("video", frames, time.perf_counter() - t_start)
+    seconds = time.perf_counter() - t_start
+    first = clock["first"]
+    return RenderStats("video", frames, seconds, first or seconds, clock["params"])  # type: ignore[arg-type]
+
+
+def _video_loop(
+    reader: VideoReader,
+    comp: CompensationLike,
+    eng: _Engine,
+    enc: EncodeThread,
+    eye_track: EyeTrack,
+    identity: bool,
+    bar: Any,
+    clock: dict[str, Any],
+    t_start: float,
+) -> None:
+    """Frames in order, one ahead: frame i renders while frame i+1's parameters are made.
+
+    Audio items that arrive while a frame is in flight are queued after it, so the encoder
+    sees everything in demux order.
+    """
+    in_flight: np.ndarray | None = None  # the buffer frame i is being rendered into
+    audio: list[AudioItem] = []
+
+    def deliver() -> None:
+        nonlocal in_flight
+        if in_flight is not None:
+            enc.put_frame(eng.collect(in_flight))
+            in_flight = None
+            if clock["first"] is None:
+                clock["first"] = time.perf_counter() - t_start
+            bar.update(1)
+        for a in audio:
+            enc.put_audio(a)
+        audio.clear()
+
+    for item in reader:
+        if isinstance(item, AudioItem):
+            if in_flight is None:
+                enc.put_audio(item)
+            else:
+                audio.append(item)
+            continue
+        eye = np.asarray(eye_track(item.time), np.float32)
+        params = None
+        if not identity:  # overlaps the previous frame's rendering
+            t = time.perf_counter()
+            params = comp(thumbnail_planes(item, THUMB_SIDE), eye, item.time)
+            clock["params"] += time.perf_counter() - t
+        buf = enc.buffer()
+        deliver()
+        eng.set_params(params, eye)
+        eng.submit(item)
+        in_flight = buf
+    deliver()
 
 
 def _read_image(path: Path, grid: tuple[int, int]) -> np.ndarray:

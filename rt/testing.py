@@ -1,5 +1,10 @@
 """Synthetic, plausible runtime models and test frames for tests and benchmarks (no GL).
 
+:class:`SyntheticCompensation` stands in for ``viewcomp.calib.compensation.Compensation``
+(the duck-typed ``comp`` of :func:`viewcomp.rt.pipeline.render_file`) on a synthetic model
+of any size; :func:`make_compensation` gives a real one from the simulator when
+``viewcomp.calib.testing.small_calibration`` exists, else the stand-in.
+
 The geometry is a flat screen z = 0 lit by a projector at (0, -0.03, 0.5) looking at the
 origin (vertical field of view 20 degrees); the calibration camera is at (0, 0.035, 0.5).
 Colour mixing matrices are smooth random fields, diagonal-dominant; responses are gamma 2.2
@@ -7,6 +12,11 @@ curves; the specular lobe has kappa ~0.3 and gamma ~20.
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -64,7 +74,8 @@ def synthetic_model(
 
     ``pixel``: per-pixel Ww (diagonal ~0.8, off-diagonal ~0.05), Wc = screen colour
     (0.9, 0.65, 0.45) times a similar field, ambients ~0.01..0.02, kappa ~0.3, gamma 20,
-    fwd_lut = l^2.2 (per channel exponents 2.1..2.3), inv_lut its inverse on [0, 1].
+    fwd_lut = l^2.2 (per channel exponents 2.1..2.3), inv_lut its inverse on [0, 1] (sampled
+    uniformly in the square root, as docs/RUNTIME.md says).
     ``paper``: global Ww, Wc_inv, fwd_lut rho_w and inv_lut rho_c^-1 on [0, max rho_c].
     """
     rng = np.random.default_rng(seed)
@@ -72,7 +83,8 @@ def synthetic_model(
     levels = np.arange(256, dtype=np.float64) / 255.0
     gam = np.array([2.1, 2.2, 2.3])
     fwd = (levels[:, None] ** gam[None, :]).astype(np.float32)
-    y = np.linspace(0.0, 1.0, n_inv)[:, None]
+    # Sample k at y = (k / (N - 1))^2 of the domain (uniform in the square root, RUNTIME.md).
+    y = np.linspace(0.0, 1.0, n_inv)[:, None] ** 2
     inv = (y ** (1.0 / gam[None, :])).astype(np.float32)
     screen = np.array([0.9, 0.65, 0.45], np.float32)
     common = dict(
@@ -195,3 +207,93 @@ def make_test_video(
                     out.mux(packet)
             for packet in aus.encode(None):
                 out.mux(packet)
+
+
+@dataclass(frozen=True)
+class SyntheticParams:
+    """What :class:`SyntheticCompensation` returns per frame (like ``FrameParams``)."""
+
+    model: RuntimeModel
+    alpha: float
+    beta: float
+
+
+class SyntheticCompensation:
+    """A stand-in for ``Compensation`` on a fixed :class:`RuntimeModel`.
+
+    Args:
+        model: the runtime model (its method and grid are this object's).
+        tone: ``(alpha, beta)``, or ``thumb (h, w, 3) uint8 -> (alpha, beta)``.
+        eye_dependent: for ``paper``, return a different (cached) model per eye, as the real
+            one does: Wc_inv scaled by 1 + 0.1 cos(angle of the eye), inv_hi likewise.
+
+    ``calls`` counts the frames asked for, ``times`` keeps each ``t``, ``thumb_shape`` the
+    last thumbnail's shape.
+    """
+
+    def __init__(
+        self,
+        model: RuntimeModel,
+        tone: tuple[float, float] | Callable[[np.ndarray], tuple[float, float]] = (0.55, 0.02),
+        eye_dependent: bool = False,
+    ) -> None:
+        self.model = model
+        self.method = model.method
+        self.tone = tone
+        self.eye_dependent = eye_dependent and model.method == "paper"
+        self._cache: dict[tuple[float, ...], RuntimeModel] = {}
+        self.calls = 0
+        self.times: list[float | None] = []
+        self.thumb_shape: tuple[int, ...] | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the grid."""
+        return self.model.shape
+
+    def base_model(self) -> RuntimeModel:
+        """The model (paper: at the calibration camera)."""
+        return self.model
+
+    def model_at(self, eye: np.ndarray) -> RuntimeModel:
+        """The model for an eye: the same object unless ``eye_dependent``."""
+        if not self.eye_dependent:
+            return self.model
+        key = tuple(np.round(np.asarray(eye, np.float64), 5))
+        m = self._cache.get(key)
+        if m is None:
+            k = 1.0 + 0.1 * math.cos(math.atan2(float(eye[2]), float(eye[0])))
+            m = replace(
+                self.model,
+                Wc_inv=(self.model.Wc_inv * np.float32(k)).astype(np.float32),  # type: ignore[operator]
+                inv_hi=(self.model.inv_hi * np.float32(k)).astype(np.float32),
+            )
+            self._cache[key] = m
+        return m
+
+    def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> Any:
+        if thumb.ndim != 3 or thumb.shape[2] != 3 or thumb.dtype != np.uint8:
+            raise ValueError(f"thumbnail must be (h, w, 3) uint8, got {thumb.dtype} {thumb.shape}")
+        self.calls += 1
+        self.times.append(t)
+        self.thumb_shape = thumb.shape
+        alpha, beta = self.tone(thumb) if callable(self.tone) else self.tone
+        return SyntheticParams(self.model_at(eye), float(alpha), float(beta))
+
+
+def make_compensation(
+    method: str = "pixel", width: int = 64, height: int = 32, tau: float | None = None
+) -> Any:
+    """A real ``Compensation`` from the simulator (``viewcomp.calib.testing``) if present.
+
+    Falls back to :class:`SyntheticCompensation` on :func:`synthetic_model` of that size
+    (eye-dependent for ``paper``) while ``small_calibration`` does not exist.
+    """
+    try:
+        from viewcomp.calib.testing import small_calibration  # type: ignore[import-not-found]
+    except ImportError:
+        return SyntheticCompensation(synthetic_model(method, width, height),  # type: ignore[arg-type]
+                                     eye_dependent=True)  # fmt: skip
+    from viewcomp.calib.compensation import Compensation
+
+    return Compensation(small_calibration(w=width, h=height), method, tau=tau)

@@ -18,6 +18,11 @@ Decisions:
   by swscale keeping matrix and range.
 - Output timestamps are frame index / rate (constant frame rate = the input's average rate);
   the frame count is kept. The output is tagged limited range with the input's matrix.
+- Encoding: H.264 (libx264) CRF 18, preset ``veryfast`` by default (x264's own default,
+  ``medium``, costs ~3x the CPU time for somewhat smaller files); the preset applies to
+  libx264/libx265 only. :class:`EncodeThread` runs the encoder on its own thread behind a
+  bounded queue, so encoding overlaps decoding and the GL work (PyAV releases the GIL while
+  it converts and encodes).
 - Audio: remuxed (packets copied) when the output container takes the codec, else decoded on
   the worker thread and re-encoded to AAC. Audio timestamps are shifted by the video stream's
   start time so that A/V sync is kept with video starting at 0.
@@ -50,6 +55,12 @@ VIDEO_FIX = (
     "it, e.g. `ffmpeg -i FILE -c:v libx264 -pix_fmt yuv420p -c:a aac fixed.mp4`"
 )
 _CRF_CODECS = {"libx264", "libx265", "libvpx", "libvpx-vp9", "libaom-av1", "libsvtav1"}
+_PRESET_CODECS = {"libx264", "libx265"}
+X264_PRESETS = (
+    "ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower",
+    "veryslow", "placebo",
+)  # fmt: skip
+DEFAULT_PRESET = "veryfast"
 _MP4_AUDIO = {"aac", "mp3", "alac", "opus", "flac", "ac3", "eac3"}
 _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1", 8: "7.1"}
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
@@ -297,6 +308,8 @@ class VideoWriter:
         rate: frames per second (the input's).
         codec: FFmpeg encoder name, ``libx264`` by default.
         crf: constant rate factor for the encoders that have one (x264/x265/vpx/aom/svt).
+        preset: x264/x265 speed preset (:data:`X264_PRESETS`), ``veryfast`` by default;
+            ignored by other encoders.
         colorspace: matrix to encode and tag with (``bt601``/``bt709``); range is limited.
         audio: the input's audio stream (a template; read before decoding starts) or None.
 
@@ -316,7 +329,14 @@ class VideoWriter:
         colorspace: Colorspace = "bt709",
         audio: Any = None,
         audio_start: float = 0.0,
+        preset: str = DEFAULT_PRESET,
     ) -> None:
+        if codec in _PRESET_CODECS and preset not in X264_PRESETS:
+            raise VideoError(
+                f"cannot write video {path}: unknown preset {preset!r}; fix: use one of "
+                f"{', '.join(X264_PRESETS)}"
+            )
+        self.preset = preset
         self.path = Path(path)
         self.tmp = temp_path_for(self.path)
         self.colorspace = colorspace
@@ -359,8 +379,12 @@ class VideoWriter:
         cc.framerate = rate
         cc.colorspace = 1 if self.colorspace == "bt709" else 6
         cc.color_range = 1
+        options = {}
         if codec in _CRF_CODECS:
-            vs.options = {"crf": str(crf)}
+            options["crf"] = str(crf)
+        if codec in _PRESET_CODECS:
+            options["preset"] = self.preset
+        vs.options = options
         self.video = vs
         self.audio_mode: AudioMode = "none"
         self.audio_out: Any = None
@@ -453,6 +477,111 @@ class VideoWriter:
             self.tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+class EncodeThread:
+    """Runs a :class:`VideoWriter` on its own thread: frames and audio in, in order.
+
+    Read-back buffers come from a small pool (:meth:`buffer`) and go back to it once encoded,
+    so the steady state allocates nothing per frame. At most ``depth`` items wait in the
+    queue; :meth:`buffer` and :meth:`put_frame` block while the encoder is behind. An error on
+    the encoder thread is raised in the caller's thread by the next call.
+
+    Use :meth:`close` (flush, rename into place) or :meth:`abort` (no output left); as a
+    context manager, an exception aborts.
+    """
+
+    def __init__(self, writer: VideoWriter, shape: tuple[int, int, int], depth: int = 3) -> None:
+        self.writer = writer
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=depth)
+        self._free: queue.Queue[np.ndarray] = queue.Queue()
+        for _ in range(depth + 3):  # queued, being encoded, in flight, being filled
+            self._free.put(np.empty(shape, np.uint8))
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-encode", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is _END or self._stop.is_set():
+                return
+            try:
+                if isinstance(item, AudioItem):
+                    self.writer.write_audio(item)
+                else:
+                    self.writer.write(item)
+                    self._free.put(item)
+            except BaseException as exc:  # re-raised in the caller's thread
+                self._error = exc
+                self._stop.set()
+                return
+
+    def _check(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def _put(self, item: Any) -> None:
+        while True:
+            self._check()
+            try:
+                self._queue.put(item, timeout=_QUEUE_POLL)
+                return
+            except queue.Full:
+                continue
+
+    def buffer(self) -> np.ndarray:
+        """A free (H, W, 3) uint8 array to render the next frame into."""
+        while True:
+            self._check()
+            try:
+                return self._free.get(timeout=_QUEUE_POLL)
+            except queue.Empty:
+                continue
+
+    def put_frame(self, rgb: np.ndarray) -> None:
+        """Queue a frame (a :meth:`buffer` array) for encoding; it returns to the pool."""
+        self._put(rgb)
+
+    def put_audio(self, item: AudioItem) -> None:
+        """Queue an audio item (written in order with the frames)."""
+        self._put(item)
+
+    @property
+    def frames_written(self) -> int:
+        """Frames encoded so far (all of them after :meth:`close`)."""
+        return self.writer.frames_written
+
+    def close(self) -> None:
+        """Encode what is queued, flush and move the file into place."""
+        self._put(_END)
+        self._thread.join()
+        self._check()
+        self.writer.close()
+
+    def abort(self) -> None:
+        """Stop without finishing; the temporary file is deleted."""
+        self._stop.set()
+        while self._thread.is_alive():
+            try:  # unblock a put waiting on a full queue; the thread then sees the flag
+                self._queue.get_nowait()
+            except queue.Empty:
+                try:
+                    self._queue.put_nowait(_END)
+                except queue.Full:
+                    pass
+            self._thread.join(timeout=_QUEUE_POLL)
+        self.writer.abort()
+
+    def __enter__(self) -> EncodeThread:
         return self
 
     def __exit__(self, exc_type: object, *exc: object) -> None:

@@ -1,16 +1,29 @@
-"""The shader against the numpy reference (docs/RUNTIME.md) on a synthetic model."""
+"""The shader against the numpy reference (docs/RUNTIME.md): synthetic and real models."""
 
 from __future__ import annotations
+
+import os
+from dataclasses import replace
 
 import moderngl
 import numpy as np
 import pytest
 
 from viewcomp.calib.reference import compensate
-from viewcomp.rt.compensator import Compensator, eye_from_angle
+from viewcomp.rt.compensator import (
+    Compensator,
+    eye_from_angle,
+    pack_pixel_maps,
+    unpack_pixel_maps,
+)
 from viewcomp.rt.context import live_gl_objects
 from viewcomp.rt.frames import Planes, rgb_to_yuv420p, yuv420p_to_rgb
-from viewcomp.rt.testing import smooth_frame, synthetic_model, uniform_frame
+from viewcomp.rt.testing import (
+    make_compensation,
+    smooth_frame,
+    synthetic_model,
+    uniform_frame,
+)
 
 pytestmark = pytest.mark.gl
 
@@ -26,10 +39,15 @@ def assert_close(gl: np.ndarray, ref: np.ndarray) -> None:
     assert np.mean(d > 1) <= 0.001, f"{np.mean(d > 1):.4%} of pixel-channels differ by > 1"
 
 
-@pytest.fixture(scope="module", params=["pixel", "paper"])
+@pytest.fixture(
+    scope="module", params=[("pixel", "float32"), ("pixel", "packed"), ("paper", "float32")],
+    ids=["pixel", "pixel-packed", "paper"],
+)  # fmt: skip
 def comp_and_model(request, gl_ctx):
-    model = synthetic_model(request.param, W, H, seed=3)
-    with Compensator(model, gl_ctx) as comp:
+    method, precision = request.param
+    model = synthetic_model(method, W, H, seed=3)
+    with Compensator(model, gl_ctx, precision=precision) as comp:
+        assert comp.packed == (precision == "packed")
         yield comp, model
 
 
@@ -45,6 +63,36 @@ def test_gl_matches_reference(comp_and_model, angle: float, kind: str) -> None:
     ref = compensate(model, frame, eye, ALPHA, BETA)
     assert_close(comp.render(frame), ref)
     assert ref.std() > 0 or kind == "uniform"
+
+
+@pytest.fixture(scope="module", params=["pixel", "paper"])
+def real(request):
+    """A real Compensation (simulated magenta glossy screen, 64x32) and a natural frame."""
+    comp = make_compensation(request.param, 64, 32)
+    return comp
+
+
+@pytest.mark.parametrize("angle", ANGLES)
+@pytest.mark.parametrize("kind", ["smooth", "uniform"])
+def test_gl_matches_reference_on_a_real_calibration(gl_ctx, real, angle, kind) -> None:
+    """Frame parameters from Compensation (model at the eye, tone map) into both backends."""
+    from viewcomp.calib.compensation import thumbnail
+
+    h, w = real.shape
+    frame = smooth_frame(w, h, seed=6) if kind == "smooth" else uniform_frame(w, h)
+    eye = eye_from_angle(angle, 0.5, 0.035)
+    try:
+        p = real(thumbnail(frame), eye)
+    except Exception as exc:  # the CPU side's problem, not the shader's: see the message
+        if type(exc).__name__ == "FitError":
+            pytest.xfail(f"Compensation({real.method}) fails at {angle} degrees: {exc}")
+        raise
+    ref = compensate(p.model, frame, eye, p.alpha, p.beta)
+    with Compensator(p.model, gl_ctx) as comp:
+        assert not comp.packed  # the default: exact float32 maps
+        comp.set_eye(*eye)
+        comp.set_tone(p.alpha, p.beta)
+        assert_close(comp.render(frame), ref)
 
 
 def test_identity_is_bit_exact(comp_and_model) -> None:
@@ -68,6 +116,68 @@ def test_video_planes_match_reference(comp_and_model) -> None:
     assert_close(comp.render_planes(planes), ref)
 
 
+def test_packing_round_trip_error_is_half_a_step() -> None:
+    from viewcomp.rt.compensator import PACKED_LAYOUT, _pixel_arrays
+
+    model, lobe = _pixel_arrays(synthetic_model("pixel", 40, 24, seed=2))
+    images, scale, offset = pack_pixel_maps(model, lobe)
+    assert len(images) == 5 and images[0].dtype == np.uint32 and images[0].shape == (24, 40, 4)
+    back = unpack_pixel_maps(images, scale, offset)
+
+    def pick(a: np.ndarray, i, j) -> np.ndarray:
+        return a if i is None else (a[..., i] if j is None else a[..., i, j])
+
+    for k, (name, i, j) in enumerate(PACKED_LAYOUT[:31]):
+        orig = pick(lobe if name == "lobe" else getattr(model, name), i, j)
+        got = pick(back[name], i, j)
+        step = scale.ravel()[k]
+        assert np.abs(got - orig).max() <= 0.5 * step + 1e-6 * np.abs(orig).max(), name
+
+
+def test_precision_choice(gl_ctx) -> None:
+    model = synthetic_model("pixel", 32, 16)
+    with Compensator(model, gl_ctx) as comp:
+        assert not comp.packed
+    with Compensator(model, gl_ctx, precision="packed") as comp:
+        assert comp.packed
+    with pytest.raises(ValueError, match="precision must be 'float32' or 'packed'"):
+        Compensator(model, gl_ctx, precision="auto")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda m: replace(m, Ww=m.Ww[..., :2]), r"Ww must be \(16, 32, 3, 3\), got .*3, 2\)"),
+        (lambda m: replace(m, Ac=m.Ac[:8]), r"Ac must be \(16, 32, 3\), got \(8, 32, 3\)"),
+        (lambda m: replace(m, Wc=None), r"pixel method needs Ww, Wc"),
+        (lambda m: replace(m, pos=m.pos[:, :, :2]), r"must be \(16, 32, 3\)|refl must be"),
+        (lambda m: replace(m, refl=m.refl[0]), r"refl must be \(H, W, 3\), got \(32, 3\)"),
+        (lambda m: replace(m, inv_lut=m.inv_lut[:, 0]), r"inv_lut must be \(N, 3\)"),
+        (lambda m: replace(m, fwd_lut=m.fwd_lut[:100]), r"fwd_lut must be \(256, 3\)"),
+        (lambda m: replace(m, kappa=np.zeros(2, np.float32)), r"kappa must be \(3,\)"),
+        (lambda m: replace(m, Wc=np.where(m.Wc > 0.5, np.nan, m.Wc)), r"Wc holds NaN"),
+        (lambda m: replace(m, gamma=float("inf")), r"gamma must be finite|not finite"),
+        (lambda m: replace(m, method="magic"), r"model.method must be one of"),
+    ],
+)
+def test_corrupt_model_is_a_clear_value_error(gl_ctx, change, match) -> None:
+    model = change(synthetic_model("pixel", 32, 16))
+    probe0 = live_gl_objects(gl_ctx)
+    with pytest.raises(ValueError, match=match):
+        Compensator(model, gl_ctx)
+    assert live_gl_objects(gl_ctx) == probe0  # nothing left behind by the failed set-up
+
+
+def test_corrupt_paper_model_is_a_clear_value_error(gl_ctx) -> None:
+    model = synthetic_model("paper", 32, 16)
+    with pytest.raises(ValueError, match=r"paper method needs model.Wc_inv"):
+        Compensator(replace(model, Wc_inv=None), gl_ctx)
+    with pytest.raises(ValueError, match=r"Wc_inv must be \(3, 3\), got \(2, 3\)"):
+        Compensator(replace(model, Wc_inv=model.Wc_inv[:2]), gl_ctx)
+    with pytest.raises(ValueError, match=r"model must be a RuntimeModel"):
+        Compensator({"method": "paper"}, gl_ctx)  # type: ignore[arg-type]
+
+
 def test_paper_update_model(gl_ctx) -> None:
     model = synthetic_model("paper", W, H)
     frame = smooth_frame(W, H, seed=2)
@@ -82,6 +192,10 @@ def test_paper_update_model(gl_ctx) -> None:
         after = comp.render(frame)
         assert not np.array_equal(before, after)
         assert_close(after, compensate(model, frame, eye, ALPHA, BETA))
+        model.inv_lo = np.array([0.01, 0.0, -0.01], np.float32)
+        model.inv_hi = (model.inv_hi * 1.1).astype(np.float32)
+        comp.update_model(inv_lo=model.inv_lo, inv_hi=model.inv_hi)
+        assert_close(comp.render(frame), compensate(model, frame, eye, ALPHA, BETA))
         with pytest.raises(ValueError, match="inv_lut must be"):
             comp.update_model(inv_lut=np.zeros((7, 3), np.float32))
 
@@ -166,3 +280,33 @@ def test_release_frees_everything(gl_ctx) -> None:
     assert live_gl_objects(gl_ctx) == probe0  # the driver agrees
     # context_gc queues every collected wrapper; none may still hold a live GL object.
     assert not [o for o in gl_ctx.objects if not isinstance(o, moderngl.InvalidObject)]
+
+
+def _rss_kib() -> int:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGESIZE") // 1024
+
+
+@pytest.mark.parametrize("method", ["pixel", "paper"])
+def test_soak_angle_changes_every_frame(gl_ctx, method) -> None:
+    """2,000 frames, a new eye, tone (and paper model) each frame: no GL object/RSS growth."""
+    w, h = 128, 72
+    planes = rgb_to_yuv420p(smooth_frame(w, h))
+    out = np.empty((h, w, 3), np.uint8)
+    model = synthetic_model(method, w, h)
+    with Compensator(model, gl_ctx) as comp:
+        for i in range(2000):
+            if i == 200:
+                objects0, rss0 = live_gl_objects(gl_ctx), _rss_kib()
+            comp.set_angle(45 + (i % 90), 0.5, 0.035)
+            comp.set_tone(0.5 + 0.001 * (i % 50), 0.02)
+            if method == "paper":
+                k = np.float32(1 + 0.001 * (i % 37))
+                comp.update_model(model.Wc_inv * k, model.inv_lut, model.inv_lo, model.inv_hi * k)
+            comp.identity = i % 7 == 0
+            if i % 3:
+                comp.render_planes(planes, out=out)
+            else:
+                comp.render(out, out=out)
+        assert live_gl_objects(gl_ctx) == objects0
+        assert _rss_kib() <= rss0 * 1.05

@@ -10,7 +10,7 @@ from viewcomp.shaders import ShaderError, assemble, build_program, list_shaders,
 
 pytestmark = pytest.mark.gl
 
-VARIANTS = [(m, i) for m in (0, 1, 2) for i in (0, 1)]
+VARIANTS = [(m, i, k) for m in (0, 1, 2) for i in (0, 1) for k in (0, 1)]
 
 
 def test_shaders_are_package_data() -> None:
@@ -34,9 +34,14 @@ def test_line_directives_keep_file_line_numbers() -> None:
     assert lines[i + 1] == load("yuv.glsl").splitlines()[0]
 
 
-@pytest.mark.parametrize(("method", "inp"), VARIANTS)
-def test_every_variant_compiles(gl_ctx, method: int, inp: int) -> None:
-    prog = build_program(gl_ctx, defines={"METHOD": method, "INPUT": inp})
+@pytest.mark.parametrize(("method", "inp", "packed"), VARIANTS)
+def test_every_variant_compiles(gl_ctx, method: int, inp: int, packed: int) -> None:
+    """With the file's defaults (Compensator compiles its constants in as literals)."""
+    prog = build_program(gl_ctx, defines={"METHOD": method, "INPUT": inp, "PACKED": packed})
+    # Per frame the fragment shader reads no uniforms (llvmpipe pays per pixel for them):
+    # everything but the samplers lives in the vertex shader.
+    names = [n for n in prog if not n.startswith(("u_", "gl_")) or n in ("u_frame", "u_flip_y")]
+    assert all(n in ("u_frame", "u_flip_y") for n in names), names
     prog.release()
 
 
