@@ -176,7 +176,7 @@ class GlfwProjector:
         self._prog = build_program(
             self._ctx,
             "fullscreen.vert.glsl",
-            "show.frag.glsl",
+            "present.frag.glsl",
         )
         if "u_flip_y" in self._prog:
             self._prog["u_flip_y"].value = 1

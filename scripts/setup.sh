@@ -26,8 +26,9 @@ is_installed() {
 }
 
 # --- Debian packages -----------------------------------------------------------------------
-# EGL/GL + Mesa (llvmpipe) for headless rendering, Xvfb for windowed tests, ffmpeg for video.
-PACKAGES=(libegl1 libgl1 libgl1-mesa-dri xvfb ffmpeg)
+# EGL/GL + Mesa (llvmpipe) for headless rendering, Xvfb for windowed tests, ffmpeg for video,
+# mpv for the `export-mpv` user shader's test in a real player.
+PACKAGES=(libegl1 libgl1 libgl1-mesa-dri xvfb ffmpeg mpv)
 
 find_python() {
   local candidate

@@ -18,16 +18,21 @@ COMMANDS = (
     "render",
     "evaluate",
     "demo",
+    "play",
+    "export-mpv",
 )
 
 DESCRIPTION = """\
 View-dependent compensation for projectors on coloured and glossy surfaces.
 
 A typical session:
-  viewcomp patterns pats --size 1280x720      patterns to project (or use `capture`)
+  viewcomp capture caps --camera 0 --monitor 1   project patterns, grab the camera
+  viewcomp patterns pats --size 1280x720      ... or just the patterns to project
   viewcomp simulate caps                      ... or simulated captures, no hardware
   viewcomp calibrate caps -o screen.vcb       captures -> calibration bundle
   viewcomp render screen.vcb in.mp4 -o out.mp4 --angle 60
+  viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
+  viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
   viewcomp demo                               all of the above on a built-in example
 """

@@ -1,0 +1,81 @@
+"""`viewcomp export-mpv CALIB -o compensate.glsl`: the compensation as an mpv user shader."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from viewcomp.commands._common import parse_vec3
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "export-mpv",
+        help="write the compensation as an mpv user shader (for kiosks that run mpv)",
+        description="Write an mpv user shader (//!HOOK OUTPUT, maps and LUTs embedded as "
+        "//!TEXTURE) that compensates everything mpv shows for one calibration. The angle "
+        "is fixed at export (works with vo=gpu and vo=gpu-next), or with --param a "
+        "//!PARAM angle set by --glsl-shader-opts=angle=DEG (vo=gpu-next with a libplacebo "
+        "that supports it; see docs/PLAYER.md). The tone map is baked too: from "
+        "--tone-from (a typical frame), or a conservative one that keeps any content in "
+        "range. Play with: mpv --glsl-shaders=FILE --dither-depth=no --fullscreen VIDEO",
+    )
+    p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
+    p.add_argument("-o", "--output", required=True, help="the shader file to write (.glsl)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--angle", type=float, default=None,
+                       help="viewing angle in degrees (default 90; with --param the default "
+                       "of the parameter)")  # fmt: skip
+    where.add_argument("--eye", help="eye position X,Y,Z in metres instead of an angle")
+    p.add_argument("--param", action="store_true",
+                   help="make the angle a //!PARAM (pixel method, vo=gpu-next)")  # fmt: skip
+    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
+    p.add_argument("--lambda", dest="lam", type=float, default=None,
+                   help="tone-map brightness weight (Eq. 22), default 1")  # fmt: skip
+    p.add_argument("--tone-from", metavar="IMAGE",
+                   help="choose the tone map for this image (a typical frame)")  # fmt: skip
+    p.add_argument("--alpha", type=float, default=None, help="bake this tone-map alpha")
+    p.add_argument("--beta", type=float, default=None, help="bake this tone-map beta")
+    p.add_argument("--precision", type=int, choices=[16, 32], default=16,
+                   help="bits per embedded map value (16: rgba16, half the size; 32: "
+                   "rgba32f, exact)")  # fmt: skip
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from viewcomp.calib.calibrate import Calibration
+    from viewcomp.calib.tonemap import DEFAULT_LAMBDA
+    from viewcomp.cli import UsageError
+    from viewcomp.rt.mpv import ExportError, export_mpv_shader, read_image, write_text_atomic
+
+    if (args.alpha is None) != (args.beta is None):
+        raise UsageError("give both --alpha and --beta, or neither")
+    if args.tone_from and args.alpha is not None:
+        raise UsageError("--tone-from and --alpha/--beta both set the tone map; give one")
+    cal = Calibration.load(args.calib)
+    try:
+        sample = read_image(args.tone_from, cal.shape) if args.tone_from else None
+        text, info = export_mpv_shader(
+            cal,
+            method=args.method,
+            angle=args.angle if args.angle is not None or args.eye else 90.0,
+            eye=parse_vec3(args.eye) if args.eye else None,
+            param=args.param,
+            lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
+            tone_sample=sample,
+            tone=None if args.alpha is None else (args.alpha, args.beta),
+            precision=args.precision,
+            source=Path(args.calib).name,
+        )
+    except ExportError as exc:
+        raise UsageError(str(exc)) from None
+    try:
+        write_text_atomic(args.output, text)
+    except OSError as exc:
+        raise UsageError(f"cannot write {args.output}: {exc}") from None
+    w, h = info.grid
+    where = "angle as //!PARAM" if info.param else (
+        f"angle {info.angle:g} deg" if info.angle is not None else "fixed eye")  # fmt: skip
+    print(f"wrote {args.output}: {info.bytes / 1e6:.1f} MB, {info.method} method, {where}, "
+          f"grid {w}x{h}, alpha {info.alpha:.3f} beta {info.beta:.4f}")  # fmt: skip
+    return 0

@@ -1,0 +1,125 @@
+"""`viewcomp play CALIB VIDEO...`: fullscreen playback with a live viewing angle."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from viewcomp.commands._common import parse_size, parse_vec3
+
+EPILOG = """\
+live angle input:
+  keys      Left/Right turn by --step degrees (Shift: 5x), Home: back to the start angle,
+            O: overlay (angle, eye, fps, drops), C: compensation on/off, Esc/Q: quit
+  mouse     drag with the left button: the window's width is 180 degrees
+  OSC/UDP   /viewcomp/angle f (degrees), /viewcomp/eye f f f (metres) to --osc HOST:PORT
+  stdin     lines `angle 60` or `eye 0.1 0.0 0.5`
+Moves are smoothed (--eye-smooth); malformed messages are logged and dropped.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "play",
+        help="fullscreen playback with a live viewing angle (OSC, stdin, keys, mouse)",
+        description="Play videos through the compensation, fullscreen on the projector, at "
+        "their frame rate (late frames are dropped, never delayed), with the viewing angle "
+        "changing live. Several files or a folder make a playlist; --loop repeats it.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("calib", nargs="?", help="calibration bundle from `viewcomp calibrate`")
+    p.add_argument("videos", nargs="*", metavar="VIDEO", help="video files or folders")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--angle", type=float, default=90.0,
+                       help="start viewing angle in degrees (default 90, in front)")  # fmt: skip
+    where.add_argument("--eye", help="start eye position X,Y,Z in metres")
+    p.add_argument("--monitor", type=int, default=0, help="monitor index (see --list-monitors)")
+    p.add_argument("--list-monitors", action="store_true", help="list the monitors and exit")
+    p.add_argument("--windowed", action="store_true", help="a window instead of fullscreen")
+    p.add_argument("--size", help="window size WxH (windowed: default the calibration grid)")
+    p.add_argument("--no-vsync", action="store_true", help="do not wait for the display refresh")
+    p.add_argument("--loop", action="store_true", help="repeat the playlist until stopped")
+    p.add_argument("--osc", metavar="HOST:PORT",
+                   help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
+    p.add_argument("--no-stdin", action="store_true", help="do not read commands from stdin")
+    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
+    p.add_argument("--lambda", dest="lam", type=float, default=None,
+                   help="tone-map brightness weight (Eq. 22), default 1")  # fmt: skip
+    p.add_argument("--smooth", type=float, default=0.5,
+                   help="tone-map smoothing time constant, s (default 0.5)")  # fmt: skip
+    p.add_argument("--eye-smooth", type=float, default=0.25,
+                   help="eye smoothing time constant, s (default 0.25; 0: instant)")  # fmt: skip
+    p.add_argument("--step", type=float, default=2.0, help="degrees per arrow key (default 2)")
+    p.add_argument("--overlay", action="store_true", help="start with the overlay shown")
+    p.add_argument("--no-audio", action="store_true", help="play silently")
+    p.add_argument("--audio-device", default="default",
+                   help="ALSA PCM name (default: default)")  # fmt: skip
+    p.add_argument("--scale", choices=["auto", "linear", "nearest"], default="auto",
+                   help="filter when the window is not the grid's size (default auto: "
+                        "nearest for whole-number factors, else linear)")  # fmt: skip
+    p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--quiet", action="store_true", help="no log lines, only the summary")
+    p.set_defaults(run=run)
+
+
+def _stdin_fd() -> int | None:
+    """Standard input's descriptor, or None when there is none (closed, not a file)."""
+    try:
+        return sys.stdin.fileno()
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def run(args: argparse.Namespace) -> int:
+    from viewcomp.cli import UsageError
+    from viewcomp.rt.live import InputError, check_angle, check_eye, parse_host_port
+    from viewcomp.rt.player import Player, PlayerError, PlayerOptions, list_monitors
+
+    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
+                        format="viewcomp play: %(message)s")  # fmt: skip
+    try:
+        if args.list_monitors:
+            for m in list_monitors():
+                print(m)
+            return 0
+        if not args.calib or not args.videos:
+            raise UsageError("give a calibration bundle and at least one video (or a folder)")
+        try:
+            osc = parse_host_port(args.osc) if args.osc else None
+            eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
+            angle = check_angle(args.angle)
+        except InputError as exc:
+            raise UsageError(str(exc)) from None
+        from viewcomp.calib.calibrate import Calibration
+        from viewcomp.calib.tonemap import DEFAULT_LAMBDA
+
+        cal = Calibration.load(args.calib)
+        options = PlayerOptions(
+            method=args.method,
+            lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
+            tone_tau=args.smooth,
+            eye_tau=args.eye_smooth,
+            angle=angle,
+            eye=eye,
+            angle_step=args.step,
+            monitor=args.monitor,
+            windowed=args.windowed,
+            size=parse_size(args.size) if args.size else None,
+            vsync=not args.no_vsync,
+            loop=args.loop,
+            osc=osc,
+            stdin_fd=None if args.no_stdin else _stdin_fd(),
+            audio=not args.no_audio,
+            audio_device=args.audio_device,
+            overlay=args.overlay,
+            scale=args.scale,
+            max_seconds=args.seconds,
+        )
+        stats = Player(cal, args.videos, options).run()
+    except PlayerError as exc:
+        print(f"viewcomp play: error: {exc}", file=sys.stderr)
+        return 2
+    print(stats.summary())
+    return 0
