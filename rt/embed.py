@@ -450,9 +450,7 @@ class LiveRenderer:
             tex = self._track(self.ctx.texture(self.grid, 4, dtype="f1"))
             tex.repeat_x = tex.repeat_y = False
             fbo = self._track(self.ctx.framebuffer(color_attachments=[tex]))
-            prog = self._track(
-                build_program(self.ctx, "fullscreen.vert.glsl", "present.frag.glsl")
-            )
+            prog = self._track(build_program(self.ctx, "fullscreen.vert.glsl", "present.frag.glsl"))
             vao = self._track(self.ctx.vertex_array(prog, []))
             self._present = (tex, fbo, prog, vao)
         return self._present
