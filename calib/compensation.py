@@ -35,7 +35,7 @@ from .tonemap import (
 if TYPE_CHECKING:
     from .calibrate import Calibration
 
-THUMB_SIDE = 96
+THUMB_SIDE = 64
 _CACHE = 64
 
 
@@ -96,7 +96,8 @@ class Compensation:
         beta_weight: mu, the black-lift penalty (per-pixel method only; the paper's method
             uses Eq. 22 exactly, mu = 0). None: ``DEFAULT_BETA_WEIGHT``.
         tau: time constant (s) of the tone map's smoothing over video frames; None: none.
-        feedback: iterations of the paper's Eq. 25 feedback (the paper: 3).
+        feedback: iterations of the paper's Eq. 25 feedback for a still (the paper: 3); for
+            video frames (called with a time ``t``) one iteration per frame, carried over.
     """
 
     def __init__(
@@ -119,6 +120,7 @@ class Compensation:
         self._pixel_model = cal.pixel.runtime_model() if method == "pixel" else None
         self._small: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, RuntimeModel]] = {}
         self._paper: OrderedDict[tuple, RuntimeModel] = OrderedDict()
+        self._gains: np.ndarray | None = None  # the paper's feedback, carried between frames
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -182,15 +184,21 @@ class Compensation:
             model = self._pixel_model
             tone = self.tone_map(model, thumb, eye)
         else:
-            gains = np.ones(3)
+            # Stills: the paper's three feedback iterations from i_c = i_s. Video (t given):
+            # the iteration carries over from frame to frame, one step per frame, starting
+            # from the previous frame's gains - the same fixed point, spread over time.
+            video = t is not None and self._gains is not None
+            gains = self._gains if video else np.ones(3)
             model = self.paper_model(eye, gains)
             tone = self.tone_map(model, thumb, eye)
-            for _ in range(self.feedback):
+            for _ in range(1 if video else self.feedback):
                 small = self._small_model(model, thumb.shape[:2])
                 out = compensate(small, thumb, eye, tone.alpha, tone.beta)
                 gains = out.reshape(-1, 3).mean(axis=0) / GRAY_LEVEL
                 model = self.paper_model(eye, gains)
                 tone = self.tone_map(model, thumb, eye)
+            if t is not None:
+                self._gains = gains
         alpha, beta = tone.alpha, tone.beta
         if self.smoother is not None and t is not None:
             alpha, beta = self.smoother.update(t, alpha, beta)

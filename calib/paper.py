@@ -6,7 +6,7 @@ camera units 0..1. Pattern names follow Table 1: ``red green blue gray ramp``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import isotonic_regression
@@ -198,12 +198,16 @@ def monotone_lut(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
 
 
 def inverse_lut(lut: np.ndarray, size: int = INV_LUT_SIZE) -> tuple[np.ndarray, ...]:
-    """Invert a strictly increasing (256, 3) curve: (size, 3) level/255 on [lo, hi] per channel."""
+    """Invert a strictly increasing (256, 3) curve: (size, 3) level/255 on [lo, hi] per channel.
+
+    Sample k sits at y = lo + (hi - lo) (k / (size - 1))^2 (see ``reference.lut_inverse``).
+    """
     lo, hi = lut[0].copy(), lut[-1].copy()
     inv = np.empty((size, 3))
     levels = np.arange(256, dtype=np.float64)
+    warp = np.linspace(0.0, 1.0, size) ** 2  # uniform in sqrt((y - lo) / (hi - lo))
     for ch in range(3):
-        ys = np.linspace(lo[ch], hi[ch], size)
+        ys = lo[ch] + (hi[ch] - lo[ch]) * warp
         inv[:, ch] = np.interp(ys, lut[:, ch], levels) / 255.0
     return inv, lo, hi
 
@@ -228,8 +232,6 @@ def regress_rho(samples: np.ndarray, name: str = "ramp", strict: bool = True) ->
     Raises:
         FitError: (strict) a ramp that is flat or decreasing, or that no such curve fits.
     """
-    from scipy.optimize import curve_fit
-
     x = np.arange(256) / 255.0
     out = np.empty((256, 3))
     for ch in range(3):
@@ -241,24 +243,8 @@ def regress_rho(samples: np.ndarray, name: str = "ramp", strict: bool = True) ->
                 f"the ramp is flat or decreasing in channel {'RGB'[ch]}: project ramp.png "
                 "(dark on the left, bright on the right) and capture it again",
             )
-
-        def curve(x: np.ndarray, a: float, b: float, g: float) -> np.ndarray:
-            return a + b * x**g
-
-        try:
-            p, _ = curve_fit(
-                curve,
-                x,
-                y,
-                p0=(float(y[0]), max(span, 1e-3), 2.0),
-                bounds=([-np.inf, 1e-9, 0.2], [np.inf, np.inf, 8.0]),
-            )
-        except RuntimeError as e:
-            if strict:
-                raise FitError(name, f"no response curve fits channel {'RGB'[ch]}: {e}") from e
-            # A predicted ramp that no response fits: the flattest increasing curve.
-            p = (float(y.mean()), 1e-6, 1.0)
-        fit = curve(x, *p)
+        a, b, g = _fit_power_curve(x, y)
+        fit = a + b * x**g
         misfit = float(np.sqrt(np.mean((y - fit) ** 2)))
         if strict and misfit > 0.25 * span:
             raise FitError(
@@ -268,6 +254,27 @@ def regress_rho(samples: np.ndarray, name: str = "ramp", strict: bool = True) ->
             )
         out[:, ch] = fit
     return out
+
+
+def _fit_power_curve(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """Least squares a + b x^g with b > 0, g in [0.2, 8]: linear in (a, b) for each g, so g is
+    searched on a geometric grid, refined three times around the best (to ~1e-6 relative).
+    """
+    lo, hi, best = np.log(0.2), np.log(8.0), (float(y.mean()), 1e-9, 1.0, np.inf)
+    for _ in range(4):
+        gs = np.exp(np.linspace(lo, hi, 41))
+        xg = x[None, :] ** gs[:, None]
+        xm, ym = xg.mean(axis=1), y.mean()
+        var = xg.var(axis=1)
+        b = np.maximum(((xg - xm[:, None]) * (y - ym)).mean(axis=1) / np.maximum(var, 1e-30), 1e-9)
+        a = ym - b * xm
+        err = ((a[:, None] + b[:, None] * xg - y) ** 2).mean(axis=1)
+        k = int(np.argmin(err))
+        if err[k] < best[3]:
+            best = (float(a[k]), float(b[k]), float(gs[k]), float(err[k]))
+        step = (hi - lo) / 40
+        lo, hi = np.log(gs[k]) - step, np.log(gs[k]) + step
+    return best[0], best[1], best[2]
 
 
 def decoupled_ramp_lut(
@@ -297,11 +304,28 @@ class PaperCalibration:
     w_tilde_w: np.ndarray
     rho_w: np.ndarray
     rv90: np.ndarray
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def delta_s(self, eye: np.ndarray, gain: np.ndarray) -> np.ndarray:
         """n i_c/i_s (S_theta - S_90) per pixel with the fitted model (Eq. 10): (H, W, 3)."""
         rv = self.geometry.rv(eye)
         return self.n * gain * (self.fit.predict(rv) - self.fit.predict(self.rv90))
+
+    def _eye_terms(self, eye: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Column means (W, 3) and image mean (3,) of S_theta - S_90 at ``eye``, cached.
+
+        Eq. 10's change is n i_c/i_s (S_theta - S_90): the gain and n are per-channel
+        factors, so these means serve every feedback gain at one eye.
+        """
+        key = tuple(np.round(np.asarray(eye, float), 6))
+        hit = self._cache.get(key)
+        if hit is None:
+            d = self.fit.predict(self.geometry.rv(eye)) - self.fit.predict(self.rv90)
+            hit = (d.mean(axis=0), d.reshape(-1, 3).mean(axis=0))
+            self._cache[key] = hit
+            if len(self._cache) > 256:
+                self._cache.pop(next(iter(self._cache)))
+        return hit
 
     def at_eye(self, eye: np.ndarray, gain: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """W~_c and rho_c for the predicted calibration images at ``eye`` (steps 3-4).
@@ -309,11 +333,11 @@ class PaperCalibration:
         ``gain`` (3,) is i_c / i_s of the feedback (Eq. 25), 1 without it.
         """
         g = np.ones(3) if gain is None else np.asarray(gain, np.float64)
-        ds = self.delta_s(eye, g)
-        shift = ds.reshape(-1, 3).mean(axis=0)
-        means = {k: v + shift for k, v in self.means_c.items()}
+        cols, mean = self._eye_terms(eye)
+        scale = self.n * g
+        means = {k: v + scale * mean for k, v in self.means_c.items()}
         w_tilde = mixing_from_means(means, check_order=False)
-        ramp = self.ramp_cols_c + ds.mean(axis=0)
+        ramp = self.ramp_cols_c + scale * cols
         return w_tilde, decoupled_ramp_lut(ramp, w_tilde, "screen/ramp (predicted)", False)
 
     def runtime_model(self, eye: np.ndarray, gain: np.ndarray | None = None) -> RuntimeModel:

@@ -86,7 +86,7 @@ class PixelCalibration:
 
     def runtime_model(self) -> RuntimeModel:
         """The per-pixel runtime model (docs/RUNTIME.md); the eye is a per-frame uniform."""
-        inv, _, _ = inverse_lut(self.f_lut)
+        inv, lo, hi = inverse_lut(self.f_lut)
         f32 = np.float32
         return RuntimeModel(
             method="pixel",
@@ -95,8 +95,8 @@ class PixelCalibration:
             cam_eye=self.geometry.camera.astype(f32),
             fwd_lut=self.f_lut.astype(f32),
             inv_lut=inv.astype(f32),
-            inv_lo=np.zeros(3, f32),
-            inv_hi=np.ones(3, f32),
+            inv_lo=lo.astype(f32),
+            inv_hi=hi.astype(f32),
             Ww=self.white.W.astype(f32),
             Aw=self.white.A.astype(f32),
             Wc=self.screen.W.astype(f32),

@@ -46,17 +46,62 @@ class ToneMap:
     cost: float
 
 
-def _coverage(lo_b: np.ndarray, hi_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Candidate betas and how many closed intervals [lo_b, hi_b] hold each.
+BETA_LIMIT = 100.0  # |beta| beyond this (linear camera units, full scale 1) is never useful
 
-    The count is piecewise constant in beta, so the optimum of (count + a penalty growing
-    with |beta|) lies at 0 or at an interval end: those are the candidates.
+
+def _best_per_alpha(
+    alphas: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    c: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    lam: float,
+    mu: float,
+    scale: float,
+) -> list[ToneMap]:
+    """The best beta for each alpha, all alphas at once (one sort, one search).
+
+    For each alpha, the set of betas keeping a pixel-channel in range is a closed interval;
+    how many intervals hold beta is piecewise constant, so the optimum of that count plus a
+    penalty growing with |beta| lies at 0 or at an interval's end: those are the candidates.
+    Rows (alphas) are laid end to end with offsets so one sorted array serves them all.
     """
-    starts = np.sort(lo_b)
-    ends = np.sort(hi_b)
-    cand = np.concatenate([[0.0], starts, ends])
-    inside = np.searchsorted(starts, cand, "right") - np.searchsorted(ends, cand, "left")
-    return cand, inside
+    n_a = alphas.size
+    var = np.abs(v) > 1e-12
+    y0 = alphas[:, None] * u[None, :] + c[None, :]
+    fixed_in = np.count_nonzero(~var & (y0 >= lo) & (y0 <= hi), axis=1)
+    vv = v[var]
+    b1 = np.clip((lo[var] - y0[:, var]) / vv, -BETA_LIMIT, BETA_LIMIT)
+    b2 = np.clip((hi[var] - y0[:, var]) / vv, -BETA_LIMIT, BETA_LIMIT)
+    starts = np.sort(np.minimum(b1, b2), axis=1)
+    ends = np.sort(np.maximum(b1, b2), axis=1)
+    m = starts.shape[1]
+    off = (np.arange(n_a, dtype=np.float64) * (4.0 * BETA_LIMIT))[:, None]
+    s_flat, e_flat = (starts + off).ravel(), (ends + off).ravel()
+    rank = np.arange(m)[None, :]
+    # Intervals holding beta = #starts <= beta - #ends < beta. At the k-th start this is
+    # k + 1 - #ends < start (exact at the last of equal starts, lower at the others, which
+    # therefore never win); at the k-th end, #starts <= end - k (exact at the first of equal
+    # ends). Row offsets cancel: every row holds m starts and m ends.
+    at_starts = rank + 1 - np.searchsorted(e_flat, s_flat, "left").reshape(n_a, m)
+    at_starts += (np.arange(n_a) * m)[:, None]
+    at_ends = np.searchsorted(s_flat, e_flat, "right").reshape(n_a, m) - rank
+    at_ends -= (np.arange(n_a) * m)[:, None]
+    at_zero = np.count_nonzero(starts <= 0.0, axis=1) - np.count_nonzero(ends < 0.0, axis=1)
+    cand = np.concatenate([np.zeros((n_a, 1)), starts, ends], axis=1)
+    inside = np.concatenate([at_zero[:, None], at_starts, at_ends], axis=1)
+    total = u.size
+    clipped = 1.0 - (inside + fixed_in[:, None]) / total
+    cost = clipped + lam * (1.0 - alphas[:, None]) ** 2 + mu * (cand / scale) ** 2
+    out = []
+    for i in range(n_a):
+        # Smallest cost; among equal costs the beta closest to 0.
+        ties = cost[i] <= cost[i].min() + 1e-12
+        k = int(np.argmin(np.where(ties, np.abs(cand[i]), np.inf)))
+        out.append(ToneMap(float(alphas[i]), float(cand[i, k]), float(clipped[i, k]),
+                           float(cost[i, k])))  # fmt: skip
+    return out
 
 
 def choose_tone_map(
@@ -96,39 +141,18 @@ def choose_tone_map(
     total = u.size
     if total == 0:
         return ToneMap(1.0, 0.0, 0.0, 0.0)
-    eps = 1e-12
-    pos, neg = v > eps, v < -eps
-    var = pos | neg
 
-    def at(a: float) -> ToneMap:
-        y0 = a * u + c
-        fixed_in = int(np.count_nonzero(~var & (y0 >= lo_a) & (y0 <= hi_a)))
-        vv = v[var]
-        b1 = (lo_a[var] - y0[var]) / vv
-        b2 = (hi_a[var] - y0[var]) / vv
-        cand, inside = _coverage(np.minimum(b1, b2), np.maximum(b1, b2))
-        clipped = 1.0 - (inside + fixed_in) / total
-        cost = clipped + lam * (1.0 - a) ** 2 + beta_weight * (cand / beta_scale) ** 2
-        # Smallest cost; among equal costs the beta closest to 0.
-        k = int(np.lexsort((np.abs(cand), np.round(cost, 12)))[0])
-        return ToneMap(float(a), float(cand[k]), float(clipped[k]), float(cost[k]))
+    def pick(alphas: np.ndarray) -> ToneMap:
+        found = _best_per_alpha(alphas, u, v, c, lo_a, hi_a, lam, beta_weight, beta_scale)
+        # Smallest cost; among equal costs the largest alpha (alphas come in descending order).
+        return min(found, key=lambda t: (round(t.cost, 12), -t.alpha))
 
-    best: ToneMap | None = None
     coarse = np.round(np.arange(1.0, ALPHA_MIN - 1e-9, -0.05), 2)
-    for a in coarse:
-        t = at(float(a))
-        if best is None or t.cost < best.cost - 1e-12:
-            best = t
-    if best is not None:
-        centre = best.alpha
-        fine = np.round(np.arange(centre + 0.04, centre - 0.0401, -ALPHA_STEP), 2)
-        for a in fine[(fine <= 1.0) & (fine >= ALPHA_MIN)]:
-            t = at(float(a))
-            if t.cost < best.cost - 1e-12 or (
-                abs(t.cost - best.cost) <= 1e-12 and t.alpha > best.alpha
-            ):
-                best = t
-    return best if best is not None else ToneMap(1.0, 0.0, 0.0, 0.0)
+    best = pick(coarse)
+    fine = np.round(np.arange(best.alpha + 0.04, best.alpha - 0.0401, -ALPHA_STEP), 2)
+    fine = fine[(fine <= 1.0) & (fine >= ALPHA_MIN)]
+    best = min((best, pick(fine)), key=lambda t: (round(t.cost, 12), -t.alpha))
+    return best
 
 
 class ToneSmoother:
