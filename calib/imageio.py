@@ -55,7 +55,7 @@ def atomic_open(path: str | Path) -> Iterator[BinaryIO]:
             os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
         tmp.unlink(missing_ok=True)
         raise
 

@@ -267,7 +267,7 @@ class Compensator:
         self._released = False
         try:
             self._setup(model)
-        except BaseException:
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             self.release()
             raise
 

@@ -150,7 +150,7 @@ class VideoReader:
             raise VideoError(f"cannot read video {self.path}: {exc}; fix: {VIDEO_FIX}") from exc
         try:
             self.info = self._probe()
-        except BaseException:
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             self.container.close()
             raise
 
@@ -351,7 +351,7 @@ class VideoWriter:
             ) from exc
         try:
             self._setup(width, height, rate, codec, crf, audio, audio_start)
-        except BaseException:
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             self.abort()
             raise
 
@@ -458,7 +458,7 @@ class VideoWriter:
                 for packet in self.audio_out.encode(None):
                     self.container.mux(packet)
             self.container.close()
-        except BaseException:
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             self.abort()
             raise
         self._closed = True
