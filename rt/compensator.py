@@ -41,6 +41,7 @@ from typing import Any, Literal
 import moderngl
 import numpy as np
 
+from viewcomp.calib.geometry import eye_from_angle
 from viewcomp.calib.reference import RuntimeModel, lut_forward
 from viewcomp.rt.context import create_context, finish, flush
 from viewcomp.rt.frames import Planes, yuv_coefficients
@@ -64,12 +65,6 @@ PACKED_LAYOUT = (
 )
 _BITS = 20  # per packed value: 16 high bits in u_m0..u_m3, the low 4 in u_m4
 _Q = float((1 << _BITS) - 1)
-
-
-def eye_from_angle(deg: float, distance: float, height: float) -> np.ndarray:
-    """E = (d cos t, h, d sin t) in metres for viewing angle t (degrees); 90 = straight on."""
-    t = math.radians(deg)
-    return np.array([distance * math.cos(t), height, distance * math.sin(t)], np.float32)
 
 
 def camera_lobe(refl: np.ndarray, pos: np.ndarray, cam_eye: np.ndarray, gamma: float) -> np.ndarray:

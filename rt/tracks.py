@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.rt.compensator import eye_from_angle
+from viewcomp.calib.geometry import eye_from_angle
 
 EyeTrack = Callable[[float], np.ndarray]
 

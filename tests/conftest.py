@@ -45,3 +45,14 @@ def gl_ctx() -> Iterator[Any]:
     yield ctx
     ctx.release()
     _GL.clear()
+
+
+@pytest.fixture
+def session_gl_current() -> Iterator[None]:
+    """Make the session's context current again after the test: the player (GLX) and
+    `viewcomp render` (its own EGL context) leave other contexts current on this thread.
+    Test modules that run them use ``pytest.mark.usefixtures("session_gl_current")``."""
+    yield
+    ctx = _GL.get("ctx")
+    if ctx is not None:
+        ctx.__enter__()

@@ -9,10 +9,10 @@ import moderngl
 import numpy as np
 import pytest
 
+from viewcomp.calib.geometry import eye_from_angle
 from viewcomp.calib.reference import compensate
 from viewcomp.rt.compensator import (
     Compensator,
-    eye_from_angle,
     pack_pixel_maps,
     unpack_pixel_maps,
 )

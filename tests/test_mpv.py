@@ -13,7 +13,6 @@ import shutil
 import socket
 import subprocess
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -28,21 +27,9 @@ from viewcomp.rt.mpv import TONE_TABLE, ExportError, export_mpv_shader, full_ran
 from viewcomp.rt.testing import smooth_frame
 from viewcomp.rt.xvfb import Xvfb, xvfb_available
 
+pytestmark = pytest.mark.usefixtures("session_gl_current")
+
 W, H = 64, 32
-
-
-@pytest.fixture(autouse=True)
-def _session_gl_context_current_again() -> Iterator[None]:
-    """The player (GLX) and `viewcomp render` (its own EGL context) leave other contexts
-    current on this thread; give the session's (tests/conftest.py) back afterwards."""
-    yield
-    try:
-        from conftest import _GL  # tests/conftest.py, imported by pytest as "conftest"
-    except ImportError:
-        return
-    ctx = _GL.get("ctx")
-    if ctx is not None:
-        ctx.__enter__()
 
 
 @pytest.fixture(scope="module")

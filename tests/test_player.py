@@ -17,7 +17,6 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,22 +31,10 @@ from viewcomp.rt.frames import yuv420p_to_rgb
 from viewcomp.rt.testing import make_test_video
 from viewcomp.rt.xvfb import Xvfb, xvfb_available
 
+pytestmark = pytest.mark.usefixtures("session_gl_current")
+
 ROOT = Path(__file__).resolve().parents[1]
 RATE = 30
-
-
-@pytest.fixture(autouse=True)
-def _session_gl_context_current_again() -> Iterator[None]:
-    """The player (GLX) and `viewcomp render` (its own EGL context) leave other contexts
-    current on this thread; give the session's (tests/conftest.py) back afterwards."""
-    yield
-    try:
-        from conftest import _GL  # tests/conftest.py, imported by pytest as "conftest"
-    except ImportError:
-        return
-    ctx = _GL.get("ctx")
-    if ctx is not None:
-        ctx.__enter__()
 
 
 def _need(what: str) -> None:

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from viewcomp.calib.compensation import thumbnail
+from viewcomp.calib.geometry import eye_from_angle
 from viewcomp.calib.reference import compensate
-from viewcomp.rt.compensator import eye_from_angle
 from viewcomp.rt.context import GLUnavailable, live_gl_objects
 from viewcomp.rt.frames import fit_rgb
 from viewcomp.rt.pipeline import ImageError, render_file
