@@ -121,6 +121,7 @@ class Compensation:
         self._small: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, RuntimeModel]] = {}
         self._paper: OrderedDict[tuple, RuntimeModel] = OrderedDict()
         self._gains: np.ndarray | None = None  # the paper's feedback, carried between frames
+        self._view: tuple[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -168,13 +169,24 @@ class Compensation:
             u = cw @ model.Wc_inv.T.astype(np.float64)
             v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
             return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
-        ds = lobe_change(small, eye).astype(np.float64)
-        m_inv = np.linalg.inv(small.Wc + ds[..., :, None] * small.Ww)
+        m_inv, v, c = self._view_terms(small, eye)
         u = np.einsum("hwij,hwj->hwi", m_inv, cw)
-        v = m_inv.sum(axis=-1)
-        c = -np.einsum("hwij,hwj->hwi", m_inv, small.Ac)
         scale = max(float(cw.mean()), 1e-4)
         return choose_tone_map(u, v, c, 0.0, 1.0, self.lam, beta_weight=self.mu, beta_scale=scale)
+
+    def _view_terms(
+        self, small: RuntimeModel, eye: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per thumbnail pixel: M^-1 at the eye, M^-1 1 and -M^-1 Ac (float64), for the
+        last (grid, eye) asked for: a held eye costs the inversion once."""
+        key = (small.shape, tuple(np.asarray(eye, np.float64).tolist()))
+        if self._view is None or self._view[0] != key:
+            ds = lobe_change(small, eye).astype(np.float64)
+            m_inv = np.linalg.inv(small.Wc + ds[..., :, None] * small.Ww)
+            v = m_inv.sum(axis=-1)
+            c = -np.einsum("hwij,hwj->hwi", m_inv, small.Ac)
+            self._view = (key, (m_inv, v, c))
+        return self._view[1]
 
     def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye, the time (s)."""

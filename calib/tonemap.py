@@ -59,48 +59,64 @@ def _best_per_alpha(
     lam: float,
     mu: float,
     scale: float,
+    bound: float = np.inf,
 ) -> list[ToneMap]:
-    """The best beta for each alpha, all alphas at once (one sort, one search).
+    """The best beta for each alpha (descending), stopping where no alpha can win any more.
+
+    Every cost is at least lam (1 - alpha)^2, which grows as alpha falls: once that exceeds
+    the best cost found so far (or ``bound``, the best of an earlier call), the remaining
+    alphas are skipped - exactly, they could not be chosen.
 
     For each alpha, the set of betas keeping a pixel-channel in range is a closed interval;
     how many intervals hold beta is piecewise constant, so the optimum of that count plus a
     penalty growing with |beta| lies at 0 or at an interval's end: those are the candidates.
-    Rows (alphas) are laid end to end with offsets so one sorted array serves them all.
+    One alpha at a time: arrays of one thumbnail's size stay in cache (a (alphas x
+    pixel-channels) block at once was ~3x slower).
     """
-    n_a = alphas.size
     var = np.abs(v) > 1e-12
-    y0 = alphas[:, None] * u[None, :] + c[None, :]
-    fixed_in = np.count_nonzero(~var & (y0 >= lo) & (y0 <= hi), axis=1)
-    vv = v[var]
-    b1 = np.clip((lo[var] - y0[:, var]) / vv, -BETA_LIMIT, BETA_LIMIT)
-    b2 = np.clip((hi[var] - y0[:, var]) / vv, -BETA_LIMIT, BETA_LIMIT)
-    starts = np.sort(np.minimum(b1, b2), axis=1)
-    ends = np.sort(np.maximum(b1, b2), axis=1)
-    m = starts.shape[1]
-    off = (np.arange(n_a, dtype=np.float64) * (4.0 * BETA_LIMIT))[:, None]
-    s_flat, e_flat = (starts + off).ravel(), (ends + off).ravel()
-    rank = np.arange(m)[None, :]
-    # Intervals holding beta = #starts <= beta - #ends < beta. At the k-th start this is
-    # k + 1 - #ends < start (exact at the last of equal starts, lower at the others, which
-    # therefore never win); at the k-th end, #starts <= end - k (exact at the first of equal
-    # ends). Row offsets cancel: every row holds m starts and m ends.
-    at_starts = rank + 1 - np.searchsorted(e_flat, s_flat, "left").reshape(n_a, m)
-    at_starts += (np.arange(n_a) * m)[:, None]
-    at_ends = np.searchsorted(s_flat, e_flat, "right").reshape(n_a, m) - rank
-    at_ends -= (np.arange(n_a) * m)[:, None]
-    at_zero = np.count_nonzero(starts <= 0.0, axis=1) - np.count_nonzero(ends < 0.0, axis=1)
-    cand = np.concatenate([np.zeros((n_a, 1)), starts, ends], axis=1)
-    inside = np.concatenate([at_zero[:, None], at_starts, at_ends], axis=1)
+    all_var = bool(var.all())
+    u_v, c_v, lo_v, hi_v = (a if all_var else a[var] for a in (u, c, lo, hi))
+    vv = v if all_var else v[var]
+    m = vv.size
+    rank = np.arange(m)
+    positions = np.arange(2 * m)
+    pos = np.empty(2 * m, np.intp)
     total = u.size
-    clipped = 1.0 - (inside + fixed_in[:, None]) / total
-    cost = clipped + lam * (1.0 - alphas[:, None]) ** 2 + mu * (cand / scale) ** 2
-    out = []
-    for i in range(n_a):
+    out: list[ToneMap] = []
+    for alpha in alphas:
+        alpha = float(alpha)
+        if lam * (1.0 - alpha) ** 2 > bound + 1e-9:
+            break
+        fixed_in = 0
+        if not all_var:
+            y_fixed = alpha * u[~var] + c[~var]
+            fixed_in = int(np.count_nonzero((y_fixed >= lo[~var]) & (y_fixed <= hi[~var])))
+        y0 = alpha * u_v + c_v
+        b1 = np.clip((lo_v - y0) / vv, -BETA_LIMIT, BETA_LIMIT)
+        b2 = np.clip((hi_v - y0) / vv, -BETA_LIMIT, BETA_LIMIT)
+        starts = np.sort(np.minimum(b1, b2))
+        ends = np.sort(np.maximum(b1, b2))
+        # Intervals holding beta = #starts <= beta - #ends < beta. At the k-th start this is
+        # k + 1 - #ends < start (exact at the last of equal starts, lower at the others,
+        # which therefore never win); at the k-th end, #starts <= end - k (exact at the
+        # first of equal ends). Both counts come from where each lands when the two sorted
+        # runs are merged, starts first among equals (a stable sort of the two runs is one
+        # merge): the k-th start at position j has j - k ends < it before it; the k-th end
+        # at position j has j - k starts <= it before it.
+        order = np.argsort(np.concatenate([starts, ends]), kind="stable")
+        pos[order] = positions
+        at_starts = 2 * rank + 1 - pos[:m]
+        at_ends = pos[m:] - 2 * rank
+        at_zero = np.searchsorted(starts, 0.0, "right") - np.searchsorted(ends, 0.0, "left")
+        cand = np.concatenate([np.zeros(1), starts, ends])
+        inside = np.concatenate([[at_zero], at_starts, at_ends])
+        clipped = 1.0 - (inside + fixed_in) / total
+        cost = clipped + lam * (1.0 - alpha) ** 2 + mu * (cand / scale) ** 2
         # Smallest cost; among equal costs the beta closest to 0.
-        ties = cost[i] <= cost[i].min() + 1e-12
-        k = int(np.argmin(np.where(ties, np.abs(cand[i]), np.inf)))
-        out.append(ToneMap(float(alphas[i]), float(cand[i, k]), float(clipped[i, k]),
-                           float(cost[i, k])))  # fmt: skip
+        ties = cost <= cost.min() + 1e-12
+        k = int(np.argmin(np.where(ties, np.abs(cand), np.inf)))
+        out.append(ToneMap(alpha, float(cand[k]), float(clipped[k]), float(cost[k])))
+        bound = min(bound, float(cost[k]))
     return out
 
 
@@ -142,17 +158,18 @@ def choose_tone_map(
     if total == 0:
         return ToneMap(1.0, 0.0, 0.0, 0.0)
 
-    def pick(alphas: np.ndarray) -> ToneMap:
-        found = _best_per_alpha(alphas, u, v, c, lo_a, hi_a, lam, beta_weight, beta_scale)
-        # Smallest cost; among equal costs the largest alpha (alphas come in descending order).
-        return min(found, key=lambda t: (round(t.cost, 12), -t.alpha))
+    def pick(alphas: np.ndarray, bound: float = np.inf) -> list[ToneMap]:
+        return _best_per_alpha(alphas, u, v, c, lo_a, hi_a, lam, beta_weight, beta_scale, bound)
+
+    def rank(t: ToneMap) -> tuple[float, float]:
+        # Smallest cost; among equal costs the largest alpha.
+        return (round(t.cost, 12), -t.alpha)
 
     coarse = np.round(np.arange(1.0, ALPHA_MIN - 1e-9, -0.05), 2)
-    best = pick(coarse)
+    best = min(pick(coarse), key=rank)
     fine = np.round(np.arange(best.alpha + 0.04, best.alpha - 0.0401, -ALPHA_STEP), 2)
-    fine = fine[(fine <= 1.0) & (fine >= ALPHA_MIN)]
-    best = min((best, pick(fine)), key=lambda t: (round(t.cost, 12), -t.alpha))
-    return best
+    fine = fine[(fine <= 1.0) & (fine >= ALPHA_MIN) & (fine != best.alpha)]
+    return min([best, *pick(fine, best.cost)], key=rank)
 
 
 class ToneSmoother:

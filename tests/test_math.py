@@ -186,6 +186,33 @@ def test_tone_map_solver_matches_brute_force(mu):
     assert np.isclose(t.clipped, np.mean((y < -1e-12) | (y > 1 + 1e-12)))
 
 
+@pytest.mark.parametrize("lam", [0.0, 1.0, 5.0])
+def test_tone_map_search_skips_only_alphas_that_cannot_win(lam):
+    """The alpha search stops where lam (1 - alpha)^2 alone exceeds the best cost: the pruned
+    search picks what evaluating every alpha on its own picks."""
+    from viewcomp.calib.tonemap import _best_per_alpha
+
+    rng = np.random.default_rng(11)
+    alphas = np.round(np.arange(1.0, 0.0999, -0.05), 2)
+    for _ in range(20):
+        n = int(rng.integers(5, 400))
+        u, v = rng.uniform(-0.2, 1.4, n), rng.uniform(0.0, 1.5, n)
+        v[rng.random(n) < 0.1] = 0.0  # some pixel-channels that beta cannot move
+        c, lo, hi = rng.normal(0, 0.1, n), np.zeros(n), np.ones(n)
+        args = (u, v, c, lo, hi, lam, 3.0, 0.4)
+        pruned = _best_per_alpha(alphas, *args)
+        every = [_best_per_alpha(np.array([a]), *args)[0] for a in alphas]
+        assert pruned == every[: len(pruned)]
+
+        def rank(t):
+            return (round(t.cost, 12), -t.alpha)
+
+        assert min(pruned, key=rank) == min(every, key=rank)
+        # lam = 0: nothing to prune; here every problem clips ~10 %, so with lam >= 1 the
+        # alphas below ~0.6 are skipped.
+        assert (len(pruned) == len(alphas)) == (lam == 0)
+
+
 def test_tone_map_is_identity_when_everything_fits():
     u = np.linspace(0.1, 0.9, 30).reshape(10, 3)
     t = choose_tone_map(u, np.ones_like(u), 0.0, 0.0, 1.0)
