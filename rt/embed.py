@@ -296,7 +296,9 @@ class LiveRenderer:
         self._present: tuple[Any, Any, Any, Any] | None = None
         self._objects: list[Any] = []
         self._model = self.comp.base_model()
-        self.compensator = Compensator(self._model, ctx)
+        # The view cache once the eye has rested a quarter second at 30 fps (a tracker's
+        # jitter or the eye's easing must not start rebuilds), built over 4 frames.
+        self.compensator = Compensator(self._model, ctx, view_hold=8, view_steps=4)
         h, w = self.compensator.height, self.compensator.width
         self.grid: tuple[int, int] = (w, h)
         self._tone = ToneWorker(self.comp, 1.0 / tone_hz) if async_tone else None

@@ -14,14 +14,16 @@
 //   scales) is compiled in as #define literals; what changes per frame (eye, tone map, the
 //   paper method's matrices) comes from the vertex shader as flat inputs v_frame[].
 // - The pixel method's 31 per-pixel values are float32 (8 RGBA32F reads) or, opt-in, 20-bit
-//   fixed point in 5 RGBA32UI texels (5 reads, 80 instead of 128 bytes; see Compensator).
+//   fixed point in 5 RGBA32UI texels (5 reads, 80 instead of 128 bytes; see Compensator),
+//   the texels of one pixel side by side in one texture (reads close in memory).
 //
 // Output: level = roundEven(255 * clamp(out, 0, 1)) (= np.rint), written as level / 255 so
 // that any float -> unorm8 conversion of the framebuffer returns exactly that level.
 
 // Variant (one program each; llvmpipe would otherwise run every branch for every pixel):
-// METHOD 0 identity, 1 pixel, 2 paper; INPUT 0 the RGB8UI texture u_rgb, 1 yuv420p planes
-// (yuv.glsl); PACKED 1 the 20-bit maps u_m0..u_m4, 0 the float32 maps u_w0..u_pos.
+// METHOD 0 identity, 1 pixel, 2 paper, 3 pixel from the view cache, 4 the view cache itself
+// (see "View cache" below); INPUT 0 the RGB8UI texture u_rgb, 1 yuv420p planes
+// (yuv.glsl); PACKED 1 the 20-bit maps, 0 the float32 maps (both in u_maps).
 #ifndef METHOD
 #define METHOD 1
 #endif
@@ -66,17 +68,23 @@ uniform usampler2D u_rgb;     // frame, 8-bit levels (RGB8UI)
 uniform sampler2D u_fwd;      // 256 x 3 R32F: row c = fwd_lut[:, c] at integer levels
 uniform sampler2D u_inv;      // N x 3 RG32F: texel (i, c) = (inv_lut[i, c], inv_lut[i + 1, c])
 
+// pixel method: the per-pixel maps, interleaved in one texture u_maps so that the texels of
+// one pixel are neighbours in memory (on llvmpipe 8 reads of one interleaved texture cost
+// about half of 8 reads of 8 textures). Texel (MAP_BX x + k % MAP_BX, MAP_BY y + k / MAP_BX)
+// is texel k of pixel (x, y); MAP_TEXEL = 1 / the texture's size (Compensator._map_block).
+#ifndef MAP_BX
+#define MAP_BX 8
+#define MAP_BY 1
+#define MAP_TEXEL vec2(1.0 / float(MAP_BX * GRID_W), 1.0 / float(MAP_BY * GRID_H))
+#endif
 #if PACKED == 1
-// pixel method, packed: 32 values per pixel, value k = q_k * Q_SCALE + Q_OFFSET with q_k a
-// 20-bit integer. u_m<t> (t < 4) holds the top 16 bits of values 8t..8t+3 in the low and
-// of 8t+4..8t+7 in the high halves of its four uints; u_m4 the low 4 bits, value 8t+4h+c
-// in bits 4 (2t + h)..+3 of its uint c. Values: Ww (row-major, 0..8), Aw (9..11), Wc
-// (12..20), Ac (21..23), refl (24..26), pos (27..29), the camera's lobe (30), unused (31).
-uniform usampler2D u_m0;
-uniform usampler2D u_m1;
-uniform usampler2D u_m2;
-uniform usampler2D u_m3;
-uniform usampler2D u_m4;
+// Packed (RGBA32UI, 5 texels a pixel): 32 values per pixel, value k = q_k * Q_SCALE +
+// Q_OFFSET with q_k a 20-bit integer. Texel t < 4 holds the top 16 bits of values 8t..8t+3
+// in the low and of 8t+4..8t+7 in the high halves of its four uints; texel 4 the low 4 bits,
+// value 8t+4h+c in bits 4 (2t + h)..+3 of its uint c. Values: Ww (row-major, 0..8), Aw
+// (9..11), Wc (12..20), Ac (21..23), refl (24..26), pos (27..29), the camera's lobe (30),
+// unused (31).
+uniform usampler2D u_maps;
 #ifndef Q_SCALE0
 #define Q_SCALE0 vec4(1.0)
 #define Q_SCALE1 vec4(1.0)
@@ -96,17 +104,89 @@ uniform usampler2D u_m4;
 #define Q_OFFSET7 vec4(0.0)
 #endif
 #else
-// pixel method, float32: RGBA32F textures, row i of Ww (xyz) and Aw[i] (w); same for Wc / Ac.
-uniform sampler2D u_w0;
-uniform sampler2D u_w1;
-uniform sampler2D u_w2;
-uniform sampler2D u_c0;
-uniform sampler2D u_c1;
-uniform sampler2D u_c2;
-uniform sampler2D u_refl;     // RGBA32F unit reflection vectors (xyz)
-uniform sampler2D u_pos;      // RGBA32F surface points (xyz, metres) and the camera's lobe
-                              // (w) = max(dot(refl, normalize(cam_eye - pos)), 0)^gamma
+// Float32 (RGBA32F, 8 texels a pixel): rows 0..2 of Ww (xyz) with Aw[row] (w); the same for
+// Wc / Ac (texels 3..5); the unit reflection vector (6, xyz); the surface point (7, xyz,
+// metres) with the camera's lobe (w) = max(dot(refl, normalize(cam_eye - pos)), 0)^gamma.
+uniform sampler2D u_maps;
 #endif
+#define MAP(base, k) textureLod(u_maps, base + vec2(float((k) % MAP_BX), float((k) / MAP_BX)) * MAP_TEXEL, 0.0)
+
+// View cache (pixel method, the eye held still). For a fixed eye the per-pixel solve is
+// linear in the tone map: y = M^-1 (alpha (Ww Pw + Aw) + beta 1 - Ac)
+//                             = alpha (G Pw + a) + beta b - d,
+// with G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1, d = M^-1 Ac. METHOD 4 writes them, per pixel,
+// as 5 RGBA32F texels interleaved like u_maps (VIEW_BX x VIEW_BY blocks): texel i < 3 =
+// (row i of G, a_i), texel 3 = (b, 0), texel 4 = (d, 0); one fragment per texel, each
+// solving its pixel once (5x the work, once per eye). METHOD 3 then reads 5 texels instead
+// of 8 and skips the lobe and the solve. Same formula, other rounding: tested against the
+// reference like METHOD 1.
+#ifndef VIEW_BX
+#define VIEW_BX 5
+#define VIEW_BY 1
+#define VIEW_TEXEL vec2(1.0 / float(VIEW_BX * GRID_W), 1.0 / float(VIEW_BY * GRID_H))
+#endif
+uniform sampler2D u_view;
+#define VIEW(base, k) textureLod(u_view, base + vec2(float((k) % VIEW_BX), float((k) / VIEW_BX)) * VIEW_TEXEL, 0.0)
+
+// The pixel method's maps at grid pixel p: rows of Ww | Aw (w0..w2), of Wc | Ac (c0..c2),
+// the reflection vector and the surface point | the camera's lobe.
+struct PixelMaps {
+    vec4 w0, w1, w2, c0, c1, c2;
+    vec3 refl;
+    vec4 pos;
+};
+
+PixelMaps read_maps(ivec2 p) {
+    vec2 base = (vec2(p * ivec2(MAP_BX, MAP_BY)) + 0.5) * MAP_TEXEL;
+    PixelMaps m;
+#if PACKED == 1
+    uvec4 t0 = MAP(base, 0);
+    uvec4 t1 = MAP(base, 1);
+    uvec4 t2 = MAP(base, 2);
+    uvec4 t3 = MAP(base, 3);
+    uvec4 t4 = MAP(base, 4);
+    vec4 v0 = vec4(((t0 & 0xFFFFu) << 4u) | (t4 & 0xFu)) * Q_SCALE0 + Q_OFFSET0;
+    vec4 v1 = vec4(((t0 >> 12u) & 0xFFFF0u) | ((t4 >> 4u) & 0xFu)) * Q_SCALE1 + Q_OFFSET1;
+    vec4 v2 = vec4(((t1 & 0xFFFFu) << 4u) | ((t4 >> 8u) & 0xFu)) * Q_SCALE2 + Q_OFFSET2;
+    vec4 v3 = vec4(((t1 >> 12u) & 0xFFFF0u) | ((t4 >> 12u) & 0xFu)) * Q_SCALE3 + Q_OFFSET3;
+    vec4 v4 = vec4(((t2 & 0xFFFFu) << 4u) | ((t4 >> 16u) & 0xFu)) * Q_SCALE4 + Q_OFFSET4;
+    vec4 v5 = vec4(((t2 >> 12u) & 0xFFFF0u) | ((t4 >> 20u) & 0xFu)) * Q_SCALE5 + Q_OFFSET5;
+    vec4 v6 = vec4(((t3 & 0xFFFFu) << 4u) | ((t4 >> 24u) & 0xFu)) * Q_SCALE6 + Q_OFFSET6;
+    vec4 v7 = vec4(((t3 >> 12u) & 0xFFFF0u) | (t4 >> 28u)) * Q_SCALE7 + Q_OFFSET7;
+    m.w0 = vec4(v0.xyz, v2.y);            // Ww row 0, Aw.x
+    m.w1 = vec4(v0.w, v1.xy, v2.z);       // Ww row 1, Aw.y
+    m.w2 = vec4(v1.zw, v2.x, v2.w);       // Ww row 2, Aw.z
+    m.c0 = vec4(v3.xyz, v5.y);            // Wc row 0, Ac.x
+    m.c1 = vec4(v3.w, v4.xy, v5.z);       // Wc row 1, Ac.y
+    m.c2 = vec4(v4.zw, v5.x, v5.w);       // Wc row 2, Ac.z
+    m.refl = v6.xyz;
+    m.pos = vec4(v6.w, v7.xyz);           // surface point, camera's lobe
+#else
+    m.w0 = MAP(base, 0);
+    m.w1 = MAP(base, 1);
+    m.w2 = MAP(base, 2);
+    m.c0 = MAP(base, 3);
+    m.c1 = MAP(base, 4);
+    m.c2 = MAP(base, 5);
+    m.refl = MAP(base, 6).xyz;
+    m.pos = MAP(base, 7);
+#endif
+    return m;
+}
+
+// The adjugate of M = Wc + diag(ds) Ww at the eye, as columns k0, k1, k2 (M^-1 = [k0 k1 k2]
+// / det), ds = kappa ((R.V_eye)^+^gamma - the camera's lobe).
+float adjugate(PixelMaps m, vec3 eye, out vec3 k0, out vec3 k1, out vec3 k2) {
+    float lobe_eye = pow(max(dot(m.refl, normalize(eye - m.pos.xyz)), 0.0), GAMMA);
+    vec3 ds = KAPPA * (lobe_eye - m.pos.w);
+    vec3 r0 = m.c0.xyz + ds.x * m.w0.xyz;
+    vec3 r1 = m.c1.xyz + ds.y * m.w1.xyz;
+    vec3 r2 = m.c2.xyz + ds.z * m.w2.xyz;
+    k0 = cross(r1, r2);
+    k1 = cross(r2, r0);
+    k2 = cross(r0, r1);
+    return dot(r0, k0);
+}
 
 out vec4 frag_color;
 
@@ -136,9 +216,29 @@ vec3 lut_inverse_at(vec3 t_lin) {
 }
 
 void main() {
+#if METHOD == 4
+    // One texel of the view cache: viewport = the cache texture, origin at (0, 0).
+    ivec2 q = ivec2(gl_FragCoord.xy);
+    ivec2 block = ivec2(VIEW_BX, VIEW_BY);
+    ivec2 sub = q - (q / block) * block;
+    int k = sub.x + VIEW_BX * sub.y;
+    PixelMaps m = read_maps(q / block);
+    vec3 k0, k1, k2;
+    float det = adjugate(m, v_frame[0].xyz, k0, k1, k2);
+    vec3 inv_det = vec3(1.0 / det);
+    vec3 g0 = (k0 * m.w0.x + k1 * m.w1.x + k2 * m.w2.x) * inv_det;  // column 0 of G
+    vec3 g1 = (k0 * m.w0.y + k1 * m.w1.y + k2 * m.w2.y) * inv_det;
+    vec3 g2 = (k0 * m.w0.z + k1 * m.w1.z + k2 * m.w2.z) * inv_det;
+    vec3 a = (k0 * m.w0.w + k1 * m.w1.w + k2 * m.w2.w) * inv_det;
+    vec3 b = (k0 + k1 + k2) * inv_det;
+    vec3 d = (k0 * m.c0.w + k1 * m.c1.w + k2 * m.c2.w) * inv_det;
+    int i = min(k, 2);
+    vec4 row = vec4(g0[i], g1[i], g2[i], a[i]);
+    frag_color = k < 3 ? row : (k == 3 ? vec4(b, 0.0) : (k == 4 ? vec4(d, 0.0) : vec4(0.0)));
+#else
     vec2 uv = v_uv;
+    ivec2 p = ivec2(uv * vec2(GRID_W, GRID_H));  // this fragment's grid pixel
 #if INPUT == 1
-    ivec2 p = ivec2(uv * vec2(GRID_W, GRID_H));
     ivec3 level = yuv420p_levels(p, uv);
 #else
     ivec3 level = ivec3(textureLod(u_rgb, uv, 0.0).rgb);
@@ -147,54 +247,35 @@ void main() {
     vec3 result;
 #if METHOD == 1
     {
-#if PACKED == 1
-        uvec4 t0 = textureLod(u_m0, uv, 0.0);
-        uvec4 t1 = textureLod(u_m1, uv, 0.0);
-        uvec4 t2 = textureLod(u_m2, uv, 0.0);
-        uvec4 t3 = textureLod(u_m3, uv, 0.0);
-        uvec4 t4 = textureLod(u_m4, uv, 0.0);
-        vec4 v0 = vec4(((t0 & 0xFFFFu) << 4u) | (t4 & 0xFu)) * Q_SCALE0 + Q_OFFSET0;
-        vec4 v1 = vec4(((t0 >> 12u) & 0xFFFF0u) | ((t4 >> 4u) & 0xFu)) * Q_SCALE1 + Q_OFFSET1;
-        vec4 v2 = vec4(((t1 & 0xFFFFu) << 4u) | ((t4 >> 8u) & 0xFu)) * Q_SCALE2 + Q_OFFSET2;
-        vec4 v3 = vec4(((t1 >> 12u) & 0xFFFF0u) | ((t4 >> 12u) & 0xFu)) * Q_SCALE3 + Q_OFFSET3;
-        vec4 v4 = vec4(((t2 & 0xFFFFu) << 4u) | ((t4 >> 16u) & 0xFu)) * Q_SCALE4 + Q_OFFSET4;
-        vec4 v5 = vec4(((t2 >> 12u) & 0xFFFF0u) | ((t4 >> 20u) & 0xFu)) * Q_SCALE5 + Q_OFFSET5;
-        vec4 v6 = vec4(((t3 & 0xFFFFu) << 4u) | ((t4 >> 24u) & 0xFu)) * Q_SCALE6 + Q_OFFSET6;
-        vec4 v7 = vec4(((t3 >> 12u) & 0xFFFF0u) | (t4 >> 28u)) * Q_SCALE7 + Q_OFFSET7;
-        vec4 w0 = vec4(v0.xyz, v2.y);            // Ww row 0, Aw.x
-        vec4 w1 = vec4(v0.w, v1.xy, v2.z);       // Ww row 1, Aw.y
-        vec4 w2 = vec4(v1.zw, v2.x, v2.w);       // Ww row 2, Aw.z
-        vec4 c0 = vec4(v3.xyz, v5.y);            // Wc row 0, Ac.x
-        vec4 c1 = vec4(v3.w, v4.xy, v5.z);       // Wc row 1, Ac.y
-        vec4 c2 = vec4(v4.zw, v5.x, v5.w);       // Wc row 2, Ac.z
-        vec3 refl = v6.xyz;
-        vec4 pos = vec4(v6.w, v7.xyz);           // surface point, camera's lobe
-#else
-        vec4 w0 = textureLod(u_w0, uv, 0.0);
-        vec4 w1 = textureLod(u_w1, uv, 0.0);
-        vec4 w2 = textureLod(u_w2, uv, 0.0);
-        vec4 c0 = textureLod(u_c0, uv, 0.0);
-        vec4 c1 = textureLod(u_c1, uv, 0.0);
-        vec4 c2 = textureLod(u_c2, uv, 0.0);
-        vec3 refl = textureLod(u_refl, uv, 0.0).xyz;
-        vec4 pos = textureLod(u_pos, uv, 0.0);
-#endif
+        PixelMaps m = read_maps(p);
         vec4 eye_alpha = v_frame[0];
         float beta = v_frame[1].x;
-
         vec3 pw = lut_forward(level);
-        vec3 cw = vec3(dot(w0.xyz, pw), dot(w1.xyz, pw), dot(w2.xyz, pw)) + vec3(w0.w, w1.w, w2.w);
+        vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
+            + vec3(m.w0.w, m.w1.w, m.w2.w);
         vec3 target = eye_alpha.w * cw + beta;
-        float lobe_eye = pow(max(dot(refl, normalize(eye_alpha.xyz - pos.xyz)), 0.0), GAMMA);
-        vec3 ds = KAPPA * (lobe_eye - pos.w);
-        // Rows of M = Wc + diag(ds) Ww; solve M y = target - Ac by the adjugate.
-        vec3 r0 = c0.xyz + ds.x * w0.xyz;
-        vec3 r1 = c1.xyz + ds.y * w1.xyz;
-        vec3 r2 = c2.xyz + ds.z * w2.xyz;
-        vec3 b = target - vec3(c0.w, c1.w, c2.w);
-        vec3 k0 = cross(r1, r2);
-        float det = dot(r0, k0);
-        vec3 y = (k0 * b.x + cross(r2, r0) * b.y + cross(r0, r1) * b.z) / det;
+        // Solve M y = target - Ac by the adjugate.
+        vec3 k0, k1, k2;
+        float det = adjugate(m, eye_alpha.xyz, k0, k1, k2);
+        vec3 b = target - vec3(m.c0.w, m.c1.w, m.c2.w);
+        vec3 y = (k0 * b.x + k1 * b.y + k2 * b.z) / det;
+        vec3 t = clamp((clamp(y, 0.0, 1.0) - INV_LO) * INV_SCALE, 0.0, float(N_INV - 1));
+        result = lut_inverse_at(t);
+    }
+#elif METHOD == 3
+    {
+        vec2 base = (vec2(p * ivec2(VIEW_BX, VIEW_BY)) + 0.5) * VIEW_TEXEL;
+        vec4 g0 = VIEW(base, 0);
+        vec4 g1 = VIEW(base, 1);
+        vec4 g2 = VIEW(base, 2);
+        vec3 bv = VIEW(base, 3).xyz;
+        vec3 dv = VIEW(base, 4).xyz;
+        float alpha = v_frame[0].w;
+        float beta = v_frame[1].x;
+        vec3 pw = lut_forward(level);
+        vec3 gp = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw))
+            + vec3(g0.w, g1.w, g2.w);
+        vec3 y = alpha * gp + beta * bv - dv;
         vec3 t = clamp((clamp(y, 0.0, 1.0) - INV_LO) * INV_SCALE, 0.0, float(N_INV - 1));
         result = lut_inverse_at(t);
     }
@@ -212,4 +293,5 @@ void main() {
 #endif
     vec3 out_level = roundEven(clamp(result, 0.0, 1.0) * 255.0);
     frag_color = vec4(out_level / 255.0, 1.0);
+#endif
 }

@@ -39,15 +39,24 @@ def assert_close(gl: np.ndarray, ref: np.ndarray) -> None:
     assert np.mean(d > 1) <= 0.001, f"{np.mean(d > 1):.4%} of pixel-channels differ by > 1"
 
 
-@pytest.fixture(
-    scope="module", params=[("pixel", "float32"), ("pixel", "packed"), ("paper", "float32")],
-    ids=["pixel", "pixel-packed", "paper"],
-)  # fmt: skip
+# (method, precision, path): "solve" solves per draw, "cached" draws from the view cache
+# (built on the first draw at an eye: view_hold=0).
+VARIANTS = [
+    ("pixel", "float32", "solve"), ("pixel", "float32", "cached"),
+    ("pixel", "packed", "solve"), ("pixel", "packed", "cached"), ("paper", "float32", "paper"),
+]  # fmt: skip
+
+
+@pytest.fixture(scope="module", params=VARIANTS, ids=["-".join(v) for v in VARIANTS])
 def comp_and_model(request, gl_ctx):
-    method, precision = request.param
+    method, precision, path = request.param
     model = synthetic_model(method, W, H, seed=3)
-    with Compensator(model, gl_ctx, precision=precision) as comp:
+    cached = path == "cached"
+    with Compensator(
+        model, gl_ctx, precision=precision, view_cache=cached, view_hold=0, view_steps=1
+    ) as comp:
         assert comp.packed == (precision == "packed")
+        comp.expected_path = path
         yield comp, model
 
 
@@ -62,6 +71,7 @@ def test_gl_matches_reference(comp_and_model, angle: float, kind: str) -> None:
     comp.set_tone(ALPHA, BETA)
     ref = compensate(model, frame, eye, ALPHA, BETA)
     assert_close(comp.render(frame), ref)
+    assert comp.last_path == comp.expected_path
     assert ref.std() > 0 or kind == "uniform"
 
 
@@ -74,7 +84,8 @@ def real(request):
 
 @pytest.mark.parametrize("angle", ANGLES)
 @pytest.mark.parametrize("kind", ["smooth", "uniform"])
-def test_gl_matches_reference_on_a_real_calibration(gl_ctx, real, angle, kind) -> None:
+@pytest.mark.parametrize("cached", [False, True], ids=["solve", "cached"])
+def test_gl_matches_reference_on_a_real_calibration(gl_ctx, real, angle, kind, cached) -> None:
     """Frame parameters from Compensation (model at the eye, tone map) into both backends."""
     from viewcomp.calib.compensation import thumbnail
 
@@ -88,11 +99,13 @@ def test_gl_matches_reference_on_a_real_calibration(gl_ctx, real, angle, kind) -
             pytest.xfail(f"Compensation({real.method}) fails at {angle} degrees: {exc}")
         raise
     ref = compensate(p.model, frame, eye, p.alpha, p.beta)
-    with Compensator(p.model, gl_ctx) as comp:
+    with Compensator(p.model, gl_ctx, view_cache=cached, view_hold=0, view_steps=1) as comp:
         assert not comp.packed  # the default: exact float32 maps
         comp.set_eye(*eye)
         comp.set_tone(p.alpha, p.beta)
         assert_close(comp.render(frame), ref)
+        if real.method == "pixel":
+            assert comp.last_path == ("cached" if cached else "solve")
 
 
 def test_identity_is_bit_exact(comp_and_model) -> None:
@@ -287,18 +300,25 @@ def _rss_kib() -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGESIZE") // 1024
 
 
-@pytest.mark.parametrize("method", ["pixel", "paper"])
+@pytest.mark.parametrize("method", ["pixel", "paper", "pixel-held"])
 def test_soak_angle_changes_every_frame(gl_ctx, method) -> None:
-    """2,000 frames, a new eye, tone (and paper model) each frame: no GL object/RSS growth."""
+    """2,000 frames, a new eye, tone (and paper model) each frame: no GL object/RSS growth.
+
+    ``pixel-held``: the eye moves every 4th frame instead, so the view cache is rebuilt
+    ~500 times (2 bands) and drawn from in between.
+    """
     w, h = 128, 72
     planes = rgb_to_yuv420p(smooth_frame(w, h))
     out = np.empty((h, w, 3), np.uint8)
+    held = method == "pixel-held"
+    method = method.split("-")[0]
     model = synthetic_model(method, w, h)
-    with Compensator(model, gl_ctx) as comp:
+    paths = set()
+    with Compensator(model, gl_ctx, view_steps=2) as comp:
         for i in range(2000):
             if i == 200:
                 objects0, rss0 = live_gl_objects(gl_ctx), _rss_kib()
-            comp.set_angle(45 + (i % 90), 0.5, 0.035)
+            comp.set_angle(45 + ((i // 4 if held else i) % 90), 0.5, 0.035)
             comp.set_tone(0.5 + 0.001 * (i % 50), 0.02)
             if method == "paper":
                 k = np.float32(1 + 0.001 * (i % 37))
@@ -308,5 +328,55 @@ def test_soak_angle_changes_every_frame(gl_ctx, method) -> None:
                 comp.render_planes(planes, out=out)
             else:
                 comp.render(out, out=out)
+            paths.add(comp.last_path)
+        assert ("cached" in paths) == held
         assert live_gl_objects(gl_ctx) == objects0
         assert _rss_kib() <= rss0 * 1.05
+
+
+def test_view_cache_policy_and_bands(gl_ctx) -> None:
+    """Held eye: solve while the cache is built band by band, then cached; a move solves."""
+    model = synthetic_model("pixel", 48, 20, seed=4)
+    frame = smooth_frame(48, 20, seed=1)
+    eye = eye_from_angle(70, 0.5, 0.035)
+    ref = compensate(model, frame, eye, ALPHA, BETA)
+    with Compensator(model, gl_ctx, view_hold=1, view_steps=3) as comp:
+        comp.set_tone(ALPHA, BETA)
+        paths = []
+        for i in range(7):
+            comp.set_eye(*(eye if i != 5 else eye_from_angle(71, 0.5, 0.035)))
+            out = comp.render(frame)
+            paths.append(comp.last_path)
+            if i != 5:
+                assert_close(out, ref)
+        # 0: new eye; 1-3: bands 1..3 (the third completes it); 5: moved for one draw (no
+        # rebuild begun); 6: back at the eye the cache still holds.
+        assert paths == ["solve", "solve", "solve", "cached", "cached", "solve", "cached"]
+        banded = comp._view[0].read()
+    with Compensator(model, gl_ctx, view_hold=0, view_steps=1) as one:
+        one.set_eye(*eye)
+        one.set_tone(ALPHA, BETA)
+        one.render(frame)
+        assert one.last_path == "cached"
+        assert banded == one._view[0].read()  # bands add up to the one-pass cache, bit for bit
+
+
+@pytest.mark.parametrize("cached", [False, True], ids=["solve", "cached"])
+def test_wide_grid_uses_two_row_blocks(gl_ctx, cached: bool) -> None:
+    """3840 wide: 8 (and 5) texels per pixel do not fit one row of GL_MAX_TEXTURE_SIZE."""
+    w, h = 3840, 6
+    if 8 * w <= int(gl_ctx.info["GL_MAX_TEXTURE_SIZE"]):
+        pytest.skip("this driver fits 8 x 3840 texels in a row")  # llvmpipe: 16384, it does not
+    model = synthetic_model("pixel", w, h, seed=8)
+    frame = smooth_frame(w, h, seed=2)
+    eye = eye_from_angle(60, 0.5, 0.035)
+    with Compensator(model, gl_ctx, view_cache=cached, view_hold=0, view_steps=2) as comp:
+        assert comp._consts["MAP_BY"] == 2
+        comp.set_eye(*eye)
+        comp.set_tone(ALPHA, BETA)
+        ref = compensate(model, frame, eye, ALPHA, BETA)
+        for _ in range(2):  # the cache takes two draws (bands); the second draw uses it
+            assert_close(comp.render(frame), ref)
+        assert comp.last_path == ("cached" if cached else "solve")
+        if cached:
+            assert comp._consts["VIEW_BY"] == 2
