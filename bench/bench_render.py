@@ -7,24 +7,27 @@ much less, so compare ratios within one run and look at both.
 
 - ``per_frame``: at 720p, 1080p and 2160p: decode (PyAV on the worker thread, yuv420p planes
   out), upload (planes, RGB), the shader for ``identity`` (pass-through), ``pixel`` (float32
-  maps, the default), ``pixel_packed`` (20-bit maps) and ``paper`` on planes and on RGB,
-  read-back; start-up (program compile, model upload) apart.
+  maps, solved per frame: a moving eye), ``pixel_cached`` (drawn from the view cache: a held
+  eye, what a constant ``--angle`` runs), ``pixel_packed`` (20-bit maps, solved) and
+  ``paper`` on planes and on RGB, ``view_cache_build_and_draw_rgb`` (a new eye: the whole
+  cache rebuilt, then a draw), read-back; start-up (program compile, model upload) apart.
 - ``cpu_reference_1080p``: the numpy reference (``viewcomp.calib.reference.compensate``) and
   ``speedup_1080p`` = reference / GL (upload RGB + shader + read-back).
 - ``params``: ``comp(thumb, eye, t)`` of ``viewcomp.calib.compensation.Compensation`` on a
   real (simulated) calibration, the eye fixed or moving every frame, thumbnail included.
 - ``pipeline_1080p``: the whole ``render_file`` (decode -> thumbnail -> params -> GL ->
   x264 CRF 18 preset veryfast on its own thread), marginal per frame = (time for 90 frames -
-  time for 30 frames) / 60, so start-up is apart; identity vs pixel with a fixed tone map
-  (the GL pipeline alone; float32 and packed maps) and with the real per-frame tone map.
-  The clip: a 1080p pan over a procedural landscape (``viewcomp.calib.testimages``), clean
-  and with sensor-like grain.
+  time for 30 frames) / 60, so start-up is apart, repeated ``--pipeline-rounds`` times with
+  the configurations in turn: identity; pixel with a fixed tone map (the GL pipeline alone);
+  pixel with the real per-frame tone map at a constant angle (``viewcomp render --angle``)
+  and with the eye moving every frame (``--track``). The clip: a 1080p pan over a
+  procedural landscape (``viewcomp.calib.testimages``), clean and with sensor-like grain.
 
 Synthetic models (:mod:`viewcomp.rt.testing`) stand in for calibrations at 720p..2160p (the
 GL cost depends on the grid, not on the numbers). Run from the repository root::
 
     .venv/bin/python bench/bench_render.py [--sizes 720p,1080p,2160p] [--repeats 5]
-        [--pipeline-frames 30,90] [--skip-pipeline] > bench.json
+        [--pipeline-frames 30,90] [--pipeline-rounds 3] [--skip-pipeline] > bench.json
 """
 
 from __future__ import annotations
@@ -126,15 +129,21 @@ def bench_size(ctx: Any, name: str, repeats: int, tmp: Path) -> dict[str, Any]:
     frame = yuv420p_to_rgb(planes)
     out = np.empty((h, w, 3), np.uint8)
     startup = {}
-    variants = (("pixel", "float32"), ("pixel_packed", "packed"), ("paper", "float32"))
-    for method, precision in variants:
-        model = synthetic_model(method.split("_")[0], w, h)  # type: ignore[arg-type]
+    # name, method, precision, view cache: "pixel" solves per frame (a moving eye),
+    # "pixel_cached" draws from the view cache (a held eye: the default for a constant angle).
+    variants = (
+        ("pixel", "pixel", "float32", False), ("pixel_cached", "pixel", "float32", True),
+        ("pixel_packed", "pixel", "packed", False), ("paper", "paper", "float32", False),
+    )  # fmt: skip
+    for key, method, precision, cached in variants:
+        model = synthetic_model(method, w, h)  # type: ignore[arg-type]
         t = time.perf_counter()
-        comp = Compensator(model, ctx, precision=precision)  # type: ignore[arg-type]
+        comp = Compensator(model, ctx, precision=precision, view_cache=cached,  # type: ignore[arg-type]
+                           view_hold=0, view_steps=1)  # fmt: skip
         comp.set_eye(*EYE)
         comp.set_tone(ALPHA, BETA)
-        comp.render_planes(planes, out=out)  # compiles the variant, first draw
-        startup[method] = _r(time.perf_counter() - t)
+        comp.render_planes(planes, out=out)  # compiles the variant (and builds the cache)
+        startup[key] = _r(time.perf_counter() - t)
         try:
 
             def draw(c: Compensator = comp) -> None:
@@ -143,8 +152,18 @@ def bench_size(ctx: Any, name: str, repeats: int, tmp: Path) -> dict[str, Any]:
 
             for kind in ("yuv", "rgb"):
                 comp.upload_planes(planes) if kind == "yuv" else comp.upload(frame)
-                res[f"{method}_{kind}"] = _measure(draw, repeats)
-            if method == "pixel":
+                res[f"{key}_{kind}"] = _measure(draw, repeats)
+            if cached:
+                state = {"i": 0}
+
+                def rebuild(c: Compensator = comp, s: dict[str, int] = state) -> None:
+                    s["i"] += 1  # a new eye each time: the whole cache is rebuilt
+                    c.set_eye(*(EYE + np.float32(1e-4 * s["i"])))
+                    c.draw()
+                    finish(c.ctx)
+
+                res["view_cache_build_and_draw_rgb"] = _measure(rebuild, repeats)
+            if key == "pixel":
                 res["upload_planes"] = _measure(
                     lambda c=comp: (c.upload_planes(planes), finish(c.ctx)), repeats
                 )
@@ -215,54 +234,84 @@ def _real_tone_comp(model: Any) -> Any:
     return Compensation(cal, "pixel", tau=0.5)  # type: ignore[arg-type]
 
 
-def bench_pipeline_1080p(ctx: Any, tmp: Path, counts: tuple[int, int]) -> dict[str, Any]:
-    """Marginal per-frame cost of the whole render_file at 1080p, identity vs pixel."""
+def _moving_eye(t: float) -> np.ndarray:
+    """An eye sweeping 45..135 degrees and back every 6 s: a new eye every frame."""
+    return eye_from_angle(90.0 + 45.0 * float(np.sin(2 * np.pi * t / 6.0)), 0.5, 0.035)
+
+
+def bench_pipeline_1080p(
+    ctx: Any, tmp: Path, counts: tuple[int, int], rounds: int
+) -> dict[str, Any]:
+    """Marginal per-frame cost of the whole render_file at 1080p, identity vs pixel.
+
+    Configurations run in turn, ``rounds`` times over (the machine's load drifts; each
+    round's ratio compares runs made seconds apart); per configuration the median over the
+    rounds, and the median and range of the per-round ratios to identity.
+    """
     w, h = SIZES["1080p"]
     model = synthetic_model("pixel", w, h)
     fixed = SyntheticCompensation(model, (ALPHA, BETA))
-    eye = constant_angle(60, 0.5, 0.035)
+    held = constant_angle(60, 0.5, 0.035)
     try:
         real: Any = _real_tone_comp(model)
     except Exception as exc:  # the stand-in calibration no longer fits Compensation
         real = None
         real_error = f"{type(exc).__name__}: {exc}"
-    res: dict[str, Any] = {"frames": list(counts), "encoder": "libx264 crf 18 veryfast"}
+    res: dict[str, Any] = {
+        "frames": list(counts), "rounds": rounds, "encoder": "libx264 crf 18 veryfast",
+    }  # fmt: skip
+    # name: (comp, identity, eye track); the real tone map is what `viewcomp render` runs.
+    configs: dict[str, tuple[Any, bool, Any]] = {
+        "identity": (fixed, True, held),
+        "pixel_fixed_tone": (fixed, False, held),
+    }
+    if real is not None:
+        configs["pixel_real_tone"] = (real, False, held)
+        configs["pixel_real_tone_moving_eye"] = (real, False, _moving_eye)
     for grain in (0.0, 2.0):
         label = "clean" if grain == 0 else "grain"
         clips = {n: tmp / f"pipe_{label}_{n}.mp4" for n in counts}
         for n, path in clips.items():
             _write_clip(path, w, h, frames=n, grain=grain)
-        configs = [
-            ("identity", fixed, True, "float32"),
-            ("pixel_fixed_tone", fixed, False, "float32"),
-            ("pixel_packed_fixed_tone", fixed, False, "packed"),
-        ]
-        if real is not None:
-            configs.append(("pixel_real_tone", real, False, "float32"))
+        per_round: dict[str, list[dict[str, Any]]] = {name: [] for name in configs}
+        for _ in range(rounds):
+            for name, (comp, identity, track) in configs.items():
+                runs = {}
+                for n, path in clips.items():
+                    if hasattr(comp, "smoother") and comp.smoother is not None:
+                        comp.smoother.state = None  # each run starts afresh
+                    t, c = time.perf_counter(), time.process_time()
+                    stats = render_file(comp, path, tmp / "out.mp4", track, identity=identity,
+                                        progress=False, ctx=ctx)  # fmt: skip
+                    runs[n] = (time.perf_counter() - t, time.process_time() - c, stats)
+                (a_wall, a_cpu, a), (b_wall, b_cpu, b) = runs[counts[0]], runs[counts[1]]
+                dn = b.frames - a.frames
+                per_round[name].append({
+                    "wall": (b_wall - a_wall) / dn, "cpu": (b_cpu - a_cpu) / dn,
+                    "params": (b.params_seconds - a.params_seconds) / dn,
+                    "startup": a.startup_seconds,
+                })  # fmt: skip
         out: dict[str, Any] = {}
-        for name, comp, identity, precision in configs:
-            runs = {}
-            for n, path in clips.items():
-                t, c = time.perf_counter(), time.process_time()
-                stats = render_file(comp, path, tmp / "out.mp4", eye, identity=identity,
-                                    progress=False, ctx=ctx, precision=precision)  # fmt: skip
-                runs[n] = (time.perf_counter() - t, time.process_time() - c, stats)
-            (a_wall, a_cpu, a), (b_wall, b_cpu, b) = runs[counts[0]], runs[counts[1]]
-            dn = b.frames - a.frames
-            wall = (b_wall - a_wall) / dn
-            out[name] = {
+        ident = per_round["identity"]
+        for name, rows in per_round.items():
+            wall = statistics.median(r["wall"] for r in rows)
+            entry: dict[str, Any] = {
                 "fps": round(1.0 / wall, 2),
-                "ms": {"wall": _r(wall), "cpu": _r((b_cpu - a_cpu) / dn)},
-                "params_ms": _r((b.params_seconds - a.params_seconds) / dn),
-                "startup_s": round(a.startup_seconds, 2),
+                "ms": {"wall": _r(wall), "cpu": _r(statistics.median(r["cpu"] for r in rows))},
+                "ms_wall_per_round": [_r(r["wall"]) for r in rows],
+                "params_ms": _r(statistics.median(r["params"] for r in rows)),
+                "startup_s": round(statistics.median(r["startup"] for r in rows), 2),
             }
-        ident = out["identity"]
-        for name in ("pixel_fixed_tone", "pixel_packed_fixed_tone", "pixel_real_tone"):
-            if name in out:
-                out[f"{name}_over_identity"] = {
-                    "fps_ratio": round(out[name]["fps"] / ident["fps"], 3),
-                    "cpu_ratio": round(ident["ms"]["cpu"] / out[name]["ms"]["cpu"], 3),
-                }
+            if name != "identity":
+                # fps / identity fps = identity's per-frame time / this one's, per round.
+                ratios = [i["wall"] / r["wall"] for i, r in zip(ident, rows, strict=True)]
+                cpu = [i["cpu"] / r["cpu"] for i, r in zip(ident, rows, strict=True)]
+                entry["fps_over_identity"] = {
+                    "median": round(statistics.median(ratios), 3),
+                    "min": round(min(ratios), 3), "max": round(max(ratios), 3),
+                    "cpu_median": round(statistics.median(cpu), 3),
+                }  # fmt: skip
+            out[name] = entry
         res[label] = out
     if real is None:
         res["pixel_real_tone"] = f"unavailable: {real_error}"
@@ -275,6 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--pipeline-frames", default="30,90")
     ap.add_argument("--params-grid", default="320x160", help="calibration grid for params")
+    ap.add_argument("--pipeline-rounds", type=int, default=3, help="pipeline repetitions")
     ap.add_argument("--skip-pipeline", action="store_true")
     args = ap.parse_args(argv)
     counts = tuple(int(x) for x in args.pipeline_frames.split(","))
@@ -311,7 +361,12 @@ def main(argv: list[str] | None = None) -> int:
         gw, gh = (int(x) for x in args.params_grid.split("x"))
         report["params"] = bench_params(max(3, args.repeats), (gw, gh))
         if not args.skip_pipeline:
-            report["pipeline_1080p"] = bench_pipeline_1080p(ctx, tmp, counts)  # type: ignore[arg-type]
+            report["pipeline_1080p"] = bench_pipeline_1080p(
+                ctx,
+                tmp,
+                counts,
+                args.pipeline_rounds,  # type: ignore[arg-type]
+            )
     report["machine"]["load_avg_end"] = [round(x, 2) for x in os.getloadavg()]
     ctx.release()
     json.dump(report, sys.stdout, indent=1)

@@ -13,14 +13,19 @@ Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
   is fixed for this object is compiled in as ``#define`` literals (one program per variant
   and Compensator, ~0.1-0.3 s at start), what changes per frame is handed over as flat
   inputs by the vertex shader (:meth:`Compensator._frame_values`);
-- the pixel method's 31 per-pixel maps are float32 (8 RGBA32F reads per pixel) by default.
-  ``precision="packed"`` stores them as 20-bit fixed point (:func:`pack_pixel_maps`) in 5
-  RGBA32UI texels (5 reads, 80 instead of 128 bytes; ~25 % faster on llvmpipe), error at
-  most half a step = (max - min) / (2^20 - 1) per value. That is not the default: the tone
-  map puts some pixel-channels exactly on the black bound, where the square-root sampled
-  inverse LUT has an unbounded slope, so a change of y by 1e-7 moves those by 2-4 levels
-  (invisible, the projector's response is flat there, but beyond "<= 3 levels anywhere" of
-  docs/RUNTIME.md); everything else stays within one level.
+- the pixel method's 31 per-pixel maps are float32 (8 RGBA32F texels per pixel) by default,
+  interleaved in one texture so that a pixel's texels are neighbours in memory (half the
+  cost of 8 separate textures on llvmpipe). ``precision="packed"`` stores them as 20-bit
+  fixed point (:func:`pack_pixel_maps`) in 5 RGBA32UI texels (80 instead of 128 bytes),
+  error at most half a step = (max - min) / (2^20 - 1) per value. That is not the default:
+  the tone map puts some pixel-channels exactly on the black bound, where the square-root
+  sampled inverse LUT has an unbounded slope, so a change of y by 1e-7 moves those by 2-4
+  levels (invisible, the projector's response is flat there, but beyond "<= 3 levels
+  anywhere" of docs/RUNTIME.md); everything else stays within one level;
+- the view cache: for a held eye the pixel method's solve is linear in the tone map, so
+  G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1 and d = M^-1 Ac are rendered once per eye (5 texels
+  per pixel, in ``view_steps`` bands) and each draw reads those instead of solving (~0.7x
+  the time at 1080p). Only a moving eye pays the full solve every draw.
 
 Typical use::
 
@@ -376,11 +381,12 @@ class Compensator:
         """(bx, by): the texels of one pixel's maps as a bx x by block, bx * by >= ``n``.
 
         One row of ``n`` texels (the fastest on llvmpipe) if ``n * W`` fits the driver's
-        GL_MAX_TEXTURE_SIZE, else the widest block that fits (e.g. 4 x 2 at 3840 wide).
+        GL_MAX_TEXTURE_SIZE, else the fewest rows that fit (e.g. 4 x 2 for 8 texels and
+        3 x 2 for 5 at 3840 wide on llvmpipe's 16384).
         """
         max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        for bx in range(n, 0, -1):
-            by = -(-n // bx)
+        for by in range(1, n + 1):
+            bx = -(-n // by)
             if bx * self.width <= max_size and by * self.height <= max_size:
                 return bx, by
         raise ValueError(

@@ -8,7 +8,7 @@ it reads embedded as hexadecimal:
 - ``VC_MAP0`` .. ``VC_MAP7`` (pixel method): the 32 per-pixel values of the packed layout
   (:data:`viewcomp.rt.compensator.PACKED_LAYOUT`: Ww, Aw, Wc, Ac, refl, pos, the camera's
   lobe, zero), 4 per texel, ``rgba16`` (16-bit unsigned normalised: value = offset +
-  t (max - min), the same quantisation as the GL compensator's packed maps) or, with
+  t (max - min): the GL compensator's packed scheme at 16 instead of 20 bits) or, with
   ``precision=32``, ``rgba32f`` (exact, twice the size);
 - ``VC_LUT`` (``rgba32f``, 2 rows): row 0 the forward LUT at the 256 levels, row 1 the
   inverse LUT (N entries on [inv_lo, inv_hi]).

@@ -10,7 +10,7 @@ from viewcomp.shaders import ShaderError, assemble, build_program, list_shaders,
 
 pytestmark = pytest.mark.gl
 
-VARIANTS = [(m, i, k) for m in (0, 1, 2) for i in (0, 1) for k in (0, 1)]
+VARIANTS = [(m, i, k) for m in (0, 1, 2, 3, 4) for i in (0, 1) for k in (0, 1)]
 
 
 def test_shaders_are_package_data() -> None:
