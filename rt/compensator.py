@@ -6,15 +6,17 @@ RGBA8 framebuffer) and releases them all in :meth:`Compensator.release` (or on l
 
 Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
 
-- every read in the shader is a NEAREST ``textureLod(.., 0)`` at the texel centre (llvmpipe
-  runs ``texelFetch`` ~1.5x slower); draws are flushed at once and waited for with the GIL
+- the frame is read with NEAREST ``textureLod(.., 0)`` at texel centres (llvmpipe runs
+  ``texelFetch`` on 2D textures ~1.5x slower); the LUTs, the maps and the view cache are
+  buffer textures (:class:`viewcomp.rt.context.BufferTexture`) read with ``texelFetch``,
+  ~0.7x the cost of the 2D reads; draws are flushed at once and waited for with the GIL
   released (:func:`viewcomp.rt.context.finish`), so other threads run meanwhile;
 - the fragment shader reads no uniforms (llvmpipe pays per pixel for each component): what
   is fixed for this object is compiled in as ``#define`` literals (one program per variant
   and Compensator, ~0.1-0.3 s at start), what changes per frame is handed over as flat
   inputs by the vertex shader (:meth:`Compensator._frame_values`);
 - the pixel method's 31 per-pixel maps are float32 (8 RGBA32F texels per pixel) by default,
-  interleaved in one texture so that a pixel's texels are neighbours in memory (half the
+  side by side in one buffer so that a pixel's texels are neighbours in memory (half the
   cost of 8 separate textures on llvmpipe). ``precision="packed"`` stores them as 20-bit
   fixed point (:func:`pack_pixel_maps`) in 5 RGBA32UI texels (80 instead of 128 bytes),
   error at most half a step = (max - min) / (2^20 - 1) per value. That is not the default:
@@ -24,8 +26,9 @@ Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
   anywhere" of docs/RUNTIME.md); everything else stays within one level;
 - the view cache: for a held eye the pixel method's solve is linear in the tone map, so
   G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1 and d = M^-1 Ac are rendered once per eye (5 texels
-  per pixel, in ``view_steps`` bands) and each draw reads those instead of solving (~0.7x
-  the time at 1080p). Only a moving eye pays the full solve every draw.
+  per pixel, in ``view_steps`` bands, each band copied into a buffer texture) and each draw
+  reads those instead of solving (~0.65x the time at 1080p). Only a moving eye pays the
+  full solve every draw.
 
 Typical use::
 
@@ -48,7 +51,13 @@ import numpy as np
 
 from viewcomp.calib.geometry import eye_from_angle
 from viewcomp.calib.reference import RuntimeModel, lut_forward
-from viewcomp.rt.context import create_context, finish, flush
+from viewcomp.rt.context import (
+    BufferTexture,
+    create_context,
+    finish,
+    flush,
+    set_sampler_units,
+)
 from viewcomp.rt.frames import Planes, yuv_coefficients
 from viewcomp.shaders import build_program
 
@@ -294,6 +303,13 @@ class Compensator:
         self._objects.append(obj)
         return obj
 
+    def _buffer_texture(self, data: np.ndarray | int, fmt: str) -> BufferTexture:
+        """A buffer texture of ``data`` (or of that many bytes, unset), owned by this object."""
+        content = np.ascontiguousarray(data).tobytes() if isinstance(data, np.ndarray) else None
+        return self._track(
+            BufferTexture(self.ctx, content, fmt, reserve=int(data) if content is None else 0)
+        )
+
     def _tex(self, size: tuple[int, int], comps: int, dtype: str, data: Any = None) -> Any:
         tex = self._track(self.ctx.texture(size, comps, data, dtype=dtype, alignment=1))
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # reads at texel centres only
@@ -334,8 +350,8 @@ class Compensator:
         fwd = _f32(model.fwd_lut, (256, 3), "fwd_lut")
         levels = np.broadcast_to(np.arange(256, dtype=np.float32)[:, None], (256, 3))
         fwd_rows = np.ascontiguousarray(lut_forward(fwd, levels).T)  # exact at integer levels
-        self._fwd = self._tex((256, 3), 1, "f4", fwd_rows)
-        self._inv = self._tex((n_inv, 3), 2, "f4", _inv_pairs(inv_lut, n_inv))
+        self._fwd = self._buffer_texture(fwd_rows, "r32f")
+        self._inv = self._buffer_texture(_inv_pairs(inv_lut, n_inv), "rg32f")
         units: dict[str, Any] = {
             "u_rgb": self._rgb, "u_y": self._y, "u_uv": self._uv,
             "u_fwd": self._fwd, "u_inv": self._inv,
@@ -377,12 +393,11 @@ class Compensator:
         span = np.maximum(self._inv_hi - self._inv_lo, 1e-12)
         return (self._n_inv - 1) / span
 
-    def _map_block(self, n: int) -> tuple[int, int]:
-        """(bx, by): the texels of one pixel's maps as a bx x by block, bx * by >= ``n``.
+    def _view_block(self, n: int) -> tuple[int, int]:
+        """(bx, by): ``n`` texels of a pixel as a bx x by block of the view cache's target.
 
-        One row of ``n`` texels (the fastest on llvmpipe) if ``n * W`` fits the driver's
-        GL_MAX_TEXTURE_SIZE, else the fewest rows that fit (e.g. 4 x 2 for 8 texels and
-        3 x 2 for 5 at 3840 wide on llvmpipe's 16384).
+        One row of ``n`` texels if ``n * W`` fits the driver's GL_MAX_TEXTURE_SIZE, else the
+        fewest rows that fit (3 x 2 for 5 texels at 3840 wide on llvmpipe's 16384).
         """
         max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         for by in range(1, n + 1):
@@ -390,27 +405,25 @@ class Compensator:
             if bx * self.width <= max_size and by * self.height <= max_size:
                 return bx, by
         raise ValueError(
-            f"grid {self.width}x{self.height} too large for the per-pixel maps "
-            f"(GL_MAX_TEXTURE_SIZE {max_size})"
+            f"grid {self.width}x{self.height} too large for the view cache "
+            f"(GL_MAX_TEXTURE_SIZE {max_size}); use view_cache=False"
         )
 
-    def _interleaved(self, texels: list[np.ndarray], dtype: str) -> Any:
-        """One texture holding ``texels[k]`` (H, W, 4) of every pixel as its block's texel k."""
-        h, w = self.height, self.width
-        bx, by = self._map_block(len(texels))
-        data = np.zeros((h, by, w, bx, 4), texels[0].dtype)
+    def _interleaved(self, texels: list[np.ndarray], fmt: str) -> BufferTexture:
+        """One buffer texture holding ``texels[k]`` (H, W, 4) of pixel (x, y) at (y W + x) n + k."""
+        h, w, n = self.height, self.width, len(texels)
+        data = np.empty((h, w, n, 4), texels[0].dtype)
         for k, img in enumerate(texels):
-            data[:, k // bx, :, k % bx, :] = img
-        self._consts["MAP_BX"], self._consts["MAP_BY"] = bx, by
-        self._consts["MAP_TEXEL"] = _vec([1.0 / (bx * w), 1.0 / (by * h)])
-        return self._tex((w * bx, h * by), 4, dtype, data)
+            data[:, :, k, :] = img
+        self._consts["MAP_N"] = n
+        return self._buffer_texture(data, fmt)
 
     def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
         h, w = model.shape
         m, lobe = _pixel_arrays(model)
         if self._precision == "packed":
             images, scale, offset = pack_pixel_maps(m, lobe)
-            maps = self._interleaved(images, "u4")
+            maps = self._interleaved(images, "rgba32ui")
             del images
             for k in range(8):
                 self._consts[f"Q_SCALE{k}"] = _vec(scale[k])
@@ -431,7 +444,7 @@ class Compensator:
         rgba[..., :3] = m.pos
         rgba[..., 3] = lobe
         texels.append(rgba)
-        return {"u_maps": self._interleaved(texels, "f4")}
+        return {"u_maps": self._interleaved(texels, "rgba32f")}
 
     def _program(self, method: int) -> tuple[Any, Any]:
         """(program, vertex array) of shader ``method`` on the current input, compiled once."""
@@ -448,9 +461,8 @@ class Compensator:
                 defines["YUV_KG"] = f"ivec2({k.cb_g}, {k.cr_g})"
             prog = self._track(build_program(self.ctx, defines=defines))
             vao = self._track(self.ctx.vertex_array(prog, []))
-            for i, name in enumerate(_SAMPLERS):  # distinct units: sampler types differ
-                if name in prog:
-                    prog[name].value = i
+            # Distinct units: sampler types differ (2D and buffer samplers).
+            set_sampler_units(prog, {n: i for i, n in enumerate(_SAMPLERS) if n in prog})
             self._programs[key] = (prog, vao)
         return self._programs[key]
 
@@ -498,26 +510,30 @@ class Compensator:
 
     def _build_view_band(self, eye: tuple[float, ...]) -> bool:
         """Render the next band of the view cache for ``eye``; True once it is complete."""
-        bx, by = self._map_block(_VIEW_TEXELS)
+        bx, by = self._view_block(_VIEW_TEXELS)
         size = (bx * self.width, by * self.height)
+        row_bytes = 16 * size[0]
         if self._view is None:
-            tex = self._tex(size, 4, "f4")
-            fbo = self._track(self.ctx.framebuffer(color_attachments=[tex]))
-            self._view = (tex, fbo)
+            fbo = self._track(self.ctx.framebuffer(color_attachments=[self._tex(size, 4, "f4")]))
+            view = self._buffer_texture(row_bytes * size[1], "rgba32f")
+            self._view = (view, fbo)
             self._consts["VIEW_BX"], self._consts["VIEW_BY"] = bx, by
-            self._consts["VIEW_TEXEL"] = _vec([1.0 / size[0], 1.0 / size[1]])
-            self._units[_SAMPLERS.index("u_view")] = (_SAMPLERS.index("u_view"), tex)
+            self._units[_SAMPLERS.index("u_view")] = (_SAMPLERS.index("u_view"), view)
         if self._building != eye:  # a new eye: start over (the old bands are stale)
             self._building, self._band_row = eye, 0
             self._view_eye = None
-        tex, fbo = self._view
+        view, fbo = self._view
         rows = -(-self.height // max(1, self.view_steps))
         r0, r1 = self._band_row, min(self.height, self._band_row + rows)
+        band = (0, by * r0, size[0], by * (r1 - r0))
         fbo.viewport = (0, 0, *size)
-        fbo.scissor = (0, by * r0, size[0], by * (r1 - r0))
+        fbo.scissor = band
         fbo.use()
         self._render(_BUILD_VIEW, flip_y=0)
         fbo.scissor = None
+        # Into the buffer texture the draws read (a copy within the driver, no round trip).
+        fbo.read_into(view.buffer, viewport=band, components=4, dtype="f4",
+                      write_offset=row_bytes * by * r0)  # fmt: skip
         self._band_row = r1
         if r1 < self.height:
             return False

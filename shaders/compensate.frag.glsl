@@ -1,21 +1,24 @@
 #version 330 core
 // The per-frame formula of docs/RUNTIME.md, one fragment path for the methods identity (0),
-// pixel (1) and paper (2); the numpy reference is viewcomp.calib.reference.compensate.
+// pixel (1, or 3 from the view cache that 4 renders) and paper (2); the numpy reference is
+// viewcomp.calib.reference.compensate.
 //
 // Addressing: v_uv (fullscreen.vert.glsl) is the centre of the grid texel this fragment
 // computes, row 0 = array row 0, so read-back of rows 0.. gives array rows 0.. again; the
 // viewport places the grid and the vertex shader flips it for a window if asked.
 //
 // Speed on Mesa llvmpipe (docs/BENCHMARKS.md), which the layout follows:
-// - Every texture read is textureLod(.., 0) with NEAREST at a texel centre (~1.5x cheaper
-//   than texelFetch there).
+// - The frame is read with NEAREST textureLod(.., 0) at texel centres (~1.5x cheaper than
+//   texelFetch from a 2D texture there); the LUTs, the maps and the view cache are buffer
+//   textures read with texelFetch (cheaper still: an index, no coordinates).
 // - No uniforms: llvmpipe pays per pixel for every uniform component a fragment shader
 //   reads. What is fixed for a Compensator (grid size, LUT domain, lobe, the packed maps'
 //   scales) is compiled in as #define literals; what changes per frame (eye, tone map, the
 //   paper method's matrices) comes from the vertex shader as flat inputs v_frame[].
 // - The pixel method's 31 per-pixel values are float32 (8 RGBA32F reads) or, opt-in, 20-bit
 //   fixed point in 5 RGBA32UI texels (5 reads, 80 instead of 128 bytes; see Compensator),
-//   the texels of one pixel side by side in one texture (reads close in memory).
+//   the texels of one pixel side by side (reads close in memory). A held eye reads the view
+//   cache instead (5 texels, no solve).
 //
 // Output: level = roundEven(255 * clamp(out, 0, 1)) (= np.rint), written as level / 255 so
 // that any float -> unorm8 conversion of the framebuffer returns exactly that level.
@@ -65,17 +68,16 @@ in vec2 v_uv;
 flat in vec4 v_frame[4];
 
 uniform usampler2D u_rgb;     // frame, 8-bit levels (RGB8UI)
-uniform sampler2D u_fwd;      // 256 x 3 R32F: row c = fwd_lut[:, c] at integer levels
-uniform sampler2D u_inv;      // N x 3 RG32F: texel (i, c) = (inv_lut[i, c], inv_lut[i + 1, c])
+// The LUTs, the maps and the view cache are buffer textures read with texelFetch (on
+// llvmpipe ~0.7x the cost of NEAREST textureLod from 2D textures: no coordinate arithmetic).
+uniform samplerBuffer u_fwd;  // R32F, 3 x 256: [256 c + l] = fwd_lut[l, c] at integer levels
+uniform samplerBuffer u_inv;  // RG32F, 3 x N: [N c + i] = (inv_lut[i, c], inv_lut[i + 1, c])
 
-// pixel method: the per-pixel maps, interleaved in one texture u_maps so that the texels of
-// one pixel are neighbours in memory (on llvmpipe 8 reads of one interleaved texture cost
-// about half of 8 reads of 8 textures). Texel (MAP_BX x + k % MAP_BX, MAP_BY y + k / MAP_BX)
-// is texel k of pixel (x, y); MAP_TEXEL = 1 / the texture's size (Compensator._map_block).
-#ifndef MAP_BX
-#define MAP_BX 8
-#define MAP_BY 1
-#define MAP_TEXEL vec2(1.0 / float(MAP_BX * GRID_W), 1.0 / float(MAP_BY * GRID_H))
+// pixel method: the per-pixel maps, MAP_N texels per pixel side by side (neighbours in
+// memory: on llvmpipe half the cost of one texture per map): texel k of grid pixel (x, y) is
+// u_maps[(y W + x) MAP_N + k].
+#ifndef MAP_N
+#define MAP_N 8
 #endif
 #if PACKED == 1
 // Packed (RGBA32UI, 5 texels a pixel): 32 values per pixel, value k = q_k * Q_SCALE +
@@ -84,7 +86,7 @@ uniform sampler2D u_inv;      // N x 3 RG32F: texel (i, c) = (inv_lut[i, c], inv
 // value 8t+4h+c in bits 4 (2t + h)..+3 of its uint c. Values: Ww (row-major, 0..8), Aw
 // (9..11), Wc (12..20), Ac (21..23), refl (24..26), pos (27..29), the camera's lobe (30),
 // unused (31).
-uniform usampler2D u_maps;
+uniform usamplerBuffer u_maps;
 #ifndef Q_SCALE0
 #define Q_SCALE0 vec4(1.0)
 #define Q_SCALE1 vec4(1.0)
@@ -107,26 +109,27 @@ uniform usampler2D u_maps;
 // Float32 (RGBA32F, 8 texels a pixel): rows 0..2 of Ww (xyz) with Aw[row] (w); the same for
 // Wc / Ac (texels 3..5); the unit reflection vector (6, xyz); the surface point (7, xyz,
 // metres) with the camera's lobe (w) = max(dot(refl, normalize(cam_eye - pos)), 0)^gamma.
-uniform sampler2D u_maps;
+uniform samplerBuffer u_maps;
 #endif
-#define MAP(base, k) textureLod(u_maps, base + vec2(float((k) % MAP_BX), float((k) / MAP_BX)) * MAP_TEXEL, 0.0)
+#define MAP(base, k) texelFetch(u_maps, (base) + (k))
 
 // View cache (pixel method, the eye held still). For a fixed eye the per-pixel solve is
 // linear in the tone map: y = M^-1 (alpha (Ww Pw + Aw) + beta 1 - Ac)
 //                             = alpha (G Pw + a) + beta b - d,
 // with G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1, d = M^-1 Ac. METHOD 4 writes them, per pixel,
-// as 5 RGBA32F texels interleaved like u_maps (VIEW_BX x VIEW_BY blocks): texel i < 3 =
-// (row i of G, a_i), texel 3 = (b, 0), texel 4 = (d, 0); one fragment per texel, each
-// solving its pixel once (5x the work, once per eye). METHOD 3 then reads 5 texels instead
-// of 8 and skips the lobe and the solve. Same formula, other rounding: tested against the
-// reference like METHOD 1.
+// as 5 RGBA32F texels in a VIEW_BX x VIEW_BY block of a 2D render target (VIEW_BX W wide):
+// texel i < 3 = (row i of G, a_i), texel 3 = (b, 0), texel 4 = (d, 0); one fragment per
+// texel, each solving its pixel once (5x the work, once per eye). The target's rows are
+// then copied into the buffer texture u_view (row-major), and METHOD 3 reads 5 texels
+// instead of 8 and skips the lobe and the solve. Same formula, other rounding: tested
+// against the reference like METHOD 1.
 #ifndef VIEW_BX
 #define VIEW_BX 5
 #define VIEW_BY 1
-#define VIEW_TEXEL vec2(1.0 / float(VIEW_BX * GRID_W), 1.0 / float(VIEW_BY * GRID_H))
 #endif
-uniform sampler2D u_view;
-#define VIEW(base, k) textureLod(u_view, base + vec2(float((k) % VIEW_BX), float((k) / VIEW_BX)) * VIEW_TEXEL, 0.0)
+uniform samplerBuffer u_view;
+// Texel k of grid pixel p: row VIEW_BY p.y + k / VIEW_BX, column VIEW_BX p.x + k % VIEW_BX.
+#define VIEW(p, k) texelFetch(u_view, (VIEW_BY * (p).y + (k) / VIEW_BX) * (VIEW_BX * GRID_W) + VIEW_BX * (p).x + (k) % VIEW_BX)
 
 // The pixel method's maps at grid pixel p: rows of Ww | Aw (w0..w2), of Wc | Ac (c0..c2),
 // the reflection vector and the surface point | the camera's lobe.
@@ -137,7 +140,7 @@ struct PixelMaps {
 };
 
 PixelMaps read_maps(ivec2 p) {
-    vec2 base = (vec2(p * ivec2(MAP_BX, MAP_BY)) + 0.5) * MAP_TEXEL;
+    int base = (p.y * GRID_W + p.x) * MAP_N;
     PixelMaps m;
 #if PACKED == 1
     uvec4 t0 = MAP(base, 0);
@@ -193,10 +196,8 @@ out vec4 frag_color;
 // Forward LUT at integer levels. u_fwd holds reference.lut_forward(fwd_lut, level) for
 // every level 0..255, computed by numpy, so this is bit-identical to the reference.
 vec3 lut_forward(ivec3 level) {
-    vec3 u = (vec3(level) + 0.5) * (1.0 / 256.0);
-    return vec3(textureLod(u_fwd, vec2(u.r, 1.0 / 6.0), 0.0).r,
-                textureLod(u_fwd, vec2(u.g, 0.5), 0.0).r,
-                textureLod(u_fwd, vec2(u.b, 5.0 / 6.0), 0.0).r);
+    return vec3(texelFetch(u_fwd, level.r).r, texelFetch(u_fwd, 256 + level.g).r,
+                texelFetch(u_fwd, 512 + level.b).r);
 }
 
 // Linear interpolation in the inverse LUT (reference.lut_inverse) at linear position
@@ -206,10 +207,9 @@ vec3 lut_inverse_at(vec3 t_lin) {
     vec3 t = sqrt(t_lin * (1.0 / float(N_INV - 1))) * float(N_INV - 1);
     ivec3 i0 = min(ivec3(floor(t)), ivec3(N_INV - 2));
     vec3 f = t - vec3(i0);
-    vec3 u = (vec3(i0) + 0.5) * (1.0 / float(N_INV));
-    vec2 ab0 = textureLod(u_inv, vec2(u.x, 1.0 / 6.0), 0.0).xy;
-    vec2 ab1 = textureLod(u_inv, vec2(u.y, 0.5), 0.0).xy;
-    vec2 ab2 = textureLod(u_inv, vec2(u.z, 5.0 / 6.0), 0.0).xy;
+    vec2 ab0 = texelFetch(u_inv, i0.x).xy;
+    vec2 ab1 = texelFetch(u_inv, N_INV + i0.y).xy;
+    vec2 ab2 = texelFetch(u_inv, 2 * N_INV + i0.z).xy;
     vec3 a = vec3(ab0.x, ab1.x, ab2.x);
     vec3 b = vec3(ab0.y, ab1.y, ab2.y);
     return a + (b - a) * f;
@@ -264,12 +264,11 @@ void main() {
     }
 #elif METHOD == 3
     {
-        vec2 base = (vec2(p * ivec2(VIEW_BX, VIEW_BY)) + 0.5) * VIEW_TEXEL;
-        vec4 g0 = VIEW(base, 0);
-        vec4 g1 = VIEW(base, 1);
-        vec4 g2 = VIEW(base, 2);
-        vec3 bv = VIEW(base, 3).xyz;
-        vec3 dv = VIEW(base, 4).xyz;
+        vec4 g0 = VIEW(p, 0);
+        vec4 g1 = VIEW(p, 1);
+        vec4 g2 = VIEW(p, 2);
+        vec3 bv = VIEW(p, 3).xyz;
+        vec3 dv = VIEW(p, 4).xyz;
         float alpha = v_frame[0].w;
         float beta = v_frame[1].x;
         vec3 pw = lut_forward(level);
