@@ -53,6 +53,7 @@ from viewcomp.calib.geometry import eye_from_angle
 from viewcomp.calib.reference import RuntimeModel, lut_forward
 from viewcomp.rt.context import (
     BufferTexture,
+    ProcAddress,
     create_context,
     finish,
     flush,
@@ -259,6 +260,8 @@ class Compensator:
         view_hold: draws with an unchanged eye before the cache is built (>= 0).
         view_steps: the cache is built in this many bands of rows, one before each draw
             (>= 1; 1: at once, the least work; more: no draw takes much longer than others).
+        gl_loader: the GL function loader (name -> address) of the host's windowing
+            library, for the few calls moderngl lacks (buffer textures); default EGL's.
 
     State defaults: eye = ``model.cam_eye``, alpha = 1, beta = 0, compensation on.
 
@@ -275,6 +278,7 @@ class Compensator:
         view_cache: bool = True,
         view_hold: int = 1,
         view_steps: int = 4,
+        gl_loader: ProcAddress | None = None,
     ) -> None:
         if precision not in ("float32", "packed"):
             raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
@@ -288,6 +292,7 @@ class Compensator:
         self.view_cache = bool(view_cache)
         self.view_hold = int(view_hold)
         self.view_steps = int(view_steps)
+        self._loader = gl_loader
         self._own_ctx = ctx is None
         self.ctx: moderngl.Context = create_context() if ctx is None else ctx
         self._objects: list[Any] = []
@@ -306,9 +311,8 @@ class Compensator:
     def _buffer_texture(self, data: np.ndarray | int, fmt: str) -> BufferTexture:
         """A buffer texture of ``data`` (or of that many bytes, unset), owned by this object."""
         content = np.ascontiguousarray(data).tobytes() if isinstance(data, np.ndarray) else None
-        return self._track(
-            BufferTexture(self.ctx, content, fmt, reserve=int(data) if content is None else 0)
-        )
+        reserve = int(data) if content is None else 0
+        return self._track(BufferTexture(self.ctx, content, fmt, reserve, self._loader))
 
     def _tex(self, size: tuple[int, int], comps: int, dtype: str, data: Any = None) -> Any:
         tex = self._track(self.ctx.texture(size, comps, data, dtype=dtype, alignment=1))
@@ -462,7 +466,8 @@ class Compensator:
             prog = self._track(build_program(self.ctx, defines=defines))
             vao = self._track(self.ctx.vertex_array(prog, []))
             # Distinct units: sampler types differ (2D and buffer samplers).
-            set_sampler_units(prog, {n: i for i, n in enumerate(_SAMPLERS) if n in prog})
+            units = {n: i for i, n in enumerate(_SAMPLERS) if n in prog}
+            set_sampler_units(prog, units, self._loader)
             self._programs[key] = (prog, vao)
         return self._programs[key]
 

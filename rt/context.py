@@ -5,6 +5,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import functools
+from collections.abc import Callable
 from typing import Any
 
 import moderngl
@@ -40,23 +41,12 @@ def create_context(require: int = 330) -> moderngl.Context:
     return ctx
 
 
-_GL_FUNCS: dict[bytes, Any] = {}
-
-
 def _gl_void(name: bytes) -> Any:
     """A GL entry point ``void name(void)`` through eglGetProcAddress (ctypes), or None."""
-    if name not in _GL_FUNCS:
-        fn = None
-        try:
-            egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
-            egl.eglGetProcAddress.restype = ctypes.c_void_p
-            egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-            addr = egl.eglGetProcAddress(name)
-            fn = ctypes.CFUNCTYPE(None)(addr) if addr else None
-        except OSError:
-            fn = None
-        _GL_FUNCS[name] = fn
-    return _GL_FUNCS[name]
+    try:
+        return _gl_proc(name.decode(), (), None)
+    except GLUnavailable:
+        return None
 
 
 def finish(ctx: moderngl.Context) -> None:
@@ -85,26 +75,41 @@ _GL_TEXTURE0 = 0x84C0
 BUFFER_FORMATS = {"r32f": 0x822E, "rg32f": 0x8230, "rgba32f": 0x8814, "rgba32ui": 0x8D70}
 
 
+ProcAddress = Callable[[str], int]  # a GL function loader: name -> address (0: none)
+
+
 @functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
-def _gl_proc(name: bytes, *argtypes: Any) -> Any:
-    """``void name(argtypes)`` of the current GL context (eglGetProcAddress, via ctypes)."""
+def _egl_loader() -> ProcAddress:
     egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
     egl.eglGetProcAddress.restype = ctypes.c_void_p
     egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-    addr = egl.eglGetProcAddress(name)
+    return lambda name: int(egl.eglGetProcAddress(name.encode()) or 0)
+
+
+@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+def _gl_proc(name: str, argtypes: tuple[Any, ...], loader: ProcAddress | None) -> Any:
+    """``void name(*argtypes)`` of the current GL context, through ``loader`` (default: EGL's
+    eglGetProcAddress, which libglvnd also dispatches to a current GLX context)."""
+    try:
+        addr = (loader or _egl_loader())(name)
+    except OSError as exc:  # no libEGL
+        raise GLUnavailable(f"cannot load GL functions ({exc}); fix: {GL_FIX}") from exc
     if not addr:
-        raise GLUnavailable(f"eglGetProcAddress({name.decode()}) failed; fix: {GL_FIX}")
+        raise GLUnavailable(f"the GL driver has no {name} (OpenGL 3.3 needed); fix: {GL_FIX}")
     return ctypes.CFUNCTYPE(None, *argtypes)(addr)
 
 
-def set_sampler_units(program: moderngl.Program, units: dict[str, int]) -> None:
+def set_sampler_units(
+    program: moderngl.Program, units: dict[str, int], loader: ProcAddress | None = None
+) -> None:
     """Point sampler uniforms at texture units with ``glUniform1i``, any sampler type.
 
     moderngl's ``program[name].value = unit`` does not take buffer samplers
-    (``samplerBuffer``); this works for every kind. Leaves no program bound.
+    (``samplerBuffer``); this works for every kind. Leaves no program bound. ``loader``: the
+    GL function loader of the host's windowing library (default: EGL's).
     """
-    use = _gl_proc(b"glUseProgram", ctypes.c_uint)
-    uniform1i = _gl_proc(b"glUniform1i", ctypes.c_int, ctypes.c_int)
+    use = _gl_proc("glUseProgram", (ctypes.c_uint,), loader)
+    uniform1i = _gl_proc("glUniform1i", (ctypes.c_int, ctypes.c_int), loader)
     use(program.glo)
     for name, unit in units.items():
         uniform1i(program[name].location, unit)
@@ -119,15 +124,24 @@ class BufferTexture:
     texture name made and deleted through ctypes. On llvmpipe a ``texelFetch`` from it costs
     ~0.7x a NEAREST ``textureLod`` from a 2D texture (an index: no coordinate arithmetic).
     Use it on the thread where its context is current; :meth:`release` frees both objects.
+    ``loader``: the GL function loader of the host's windowing library (default: EGL's).
     """
 
-    def __init__(self, ctx: moderngl.Context, data: Any, fmt: str, reserve: int = 0) -> None:
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        data: Any,
+        fmt: str,
+        reserve: int = 0,
+        loader: ProcAddress | None = None,
+    ) -> None:
+        uint, pname = ctypes.c_uint, ctypes.POINTER(ctypes.c_uint)
         self._gl = {  # resolved before anything is made: a failure leaves nothing behind
-            "gen": _gl_proc(b"glGenTextures", ctypes.c_int, ctypes.POINTER(ctypes.c_uint)),
-            "delete": _gl_proc(b"glDeleteTextures", ctypes.c_int, ctypes.POINTER(ctypes.c_uint)),
-            "bind": _gl_proc(b"glBindTexture", ctypes.c_uint, ctypes.c_uint),
-            "active": _gl_proc(b"glActiveTexture", ctypes.c_uint),
-            "tex_buffer": _gl_proc(b"glTexBuffer", ctypes.c_uint, ctypes.c_uint, ctypes.c_uint),
+            "gen": _gl_proc("glGenTextures", (ctypes.c_int, pname), loader),
+            "delete": _gl_proc("glDeleteTextures", (ctypes.c_int, pname), loader),
+            "bind": _gl_proc("glBindTexture", (uint, uint), loader),
+            "active": _gl_proc("glActiveTexture", (uint,), loader),
+            "tex_buffer": _gl_proc("glTexBuffer", (uint, uint, uint), loader),
         }
         internal_format = BUFFER_FORMATS[fmt]
         self.buffer = ctx.buffer(data, reserve=reserve)

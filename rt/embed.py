@@ -41,7 +41,6 @@ import ctypes
 import ctypes.util
 import threading
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -50,6 +49,7 @@ import numpy as np
 from viewcomp.calib.compensation import Compensation, FrameParams, thumbnail
 from viewcomp.calib.tonemap import DEFAULT_LAMBDA
 from viewcomp.rt.compensator import Compensator
+from viewcomp.rt.context import ProcAddress
 from viewcomp.rt.frames import Planes, fit_rgb, thumbnail_planes
 from viewcomp.rt.live import Command, EyeState, SetAngle, SetEye, check_angle, check_eye
 from viewcomp.shaders import build_program
@@ -60,8 +60,6 @@ if TYPE_CHECKING:
     from viewcomp.calib.calibrate import Calibration
 
 ScaleFilter = Literal["auto", "linear", "nearest"]
-
-ProcAddress = Callable[[str], int]
 
 _GL_READ_FRAMEBUFFER = 0x8CA8
 _GL_DRAW_FRAMEBUFFER = 0x8CA9
@@ -298,7 +296,10 @@ class LiveRenderer:
         self._model = self.comp.base_model()
         # The view cache once the eye has rested a quarter second at 30 fps (a tracker's
         # jitter or the eye's easing must not start rebuilds), built over 4 frames.
-        self.compensator = Compensator(self._model, ctx, view_hold=8, view_steps=4)
+        loader = proc_address or default_proc_address()  # the host's, for buffer textures
+        self.compensator = Compensator(
+            self._model, ctx, view_hold=8, view_steps=4, gl_loader=loader
+        )
         h, w = self.compensator.height, self.compensator.width
         self.grid: tuple[int, int] = (w, h)
         self._tone = ToneWorker(self.comp, 1.0 / tone_hz) if async_tone else None
