@@ -79,7 +79,7 @@ PACKED_LAYOUT = (
     + [("pos", i, None) for i in range(3)]
     + [("lobe", None, None), ("zero", None, None)]
 )
-_BITS = 20  # per packed value: 16 high bits in u_m0..u_m3, the low 4 in u_m4
+_BITS = 20  # per packed value: 16 high bits in texels 0..3 of a pixel, the low 4 in texel 4
 _Q = float((1 << _BITS) - 1)
 
 
