@@ -49,6 +49,14 @@ def _gl_void(name: bytes) -> Any:
         return None
 
 
+def core_profile_hints(glfw: Any) -> None:
+    """glfw window hints for an OpenGL 3.3 core, forward-compatible context (the project's)."""
+    glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
+    glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+    glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+    glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+
+
 def finish(ctx: moderngl.Context) -> None:
     """``glFinish`` without holding Python's GIL (moderngl's ``ctx.finish()`` holds it).
 

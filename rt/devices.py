@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from viewcomp.calib.imageio import CaptureError
+from viewcomp.rt.context import core_profile_hints
 
 if TYPE_CHECKING:
     from viewcomp.calib.simulator import Screen, Simulator
@@ -150,10 +151,7 @@ class GlfwProjector:
         mon = monitors[monitor]
         mode = glfw.get_video_mode(mon)
         try:
-            glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
-            glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
-            glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
-            glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+            core_profile_hints(glfw)
             glfw.window_hint(glfw.AUTO_ICONIFY, False)
             glfw.window_hint(glfw.REFRESH_RATE, mode.refresh_rate)
             self._window = glfw.create_window(

@@ -289,16 +289,17 @@ class LiveRenderer:
         self.eye_state = EyeState(v.distance, height, start, eye_tau)
         self.tone_side = int(tone_side)
         self.scale = scale
-        self._proc = proc_address
+        # One GL loader (the host's; glfw's when a glfw context is current) for the raw calls
+        # here and the Compensator's buffer textures.
+        self._proc = proc_address or default_proc_address()
         self._raw: _GL | None = None
         self._present: tuple[Any, Any, Any, Any] | None = None
         self._objects: list[Any] = []
         self._model = self.comp.base_model()
         # The view cache once the eye has rested a quarter second at 30 fps (a tracker's
         # jitter or the eye's easing must not start rebuilds), built over 4 frames.
-        loader = proc_address or default_proc_address()  # the host's, for buffer textures
         self.compensator = Compensator(
-            self._model, ctx, view_hold=8, view_steps=4, gl_loader=loader
+            self._model, ctx, view_hold=8, view_steps=4, gl_loader=self._proc
         )
         h, w = self.compensator.height, self.compensator.width
         self.grid: tuple[int, int] = (w, h)
@@ -460,7 +461,7 @@ class LiveRenderer:
 
     def _gl(self) -> _GL:
         if self._raw is None:
-            self._raw = _GL(self._proc or default_proc_address())
+            self._raw = _GL(self._proc)
         return self._raw
 
     def finish(self) -> None:

@@ -44,6 +44,7 @@ import numpy as np
 
 from viewcomp.calib.tonemap import DEFAULT_LAMBDA
 from viewcomp.rt.audio import AudioPlayer, AudioStats, open_alsa
+from viewcomp.rt.context import core_profile_hints
 from viewcomp.rt.frames import Planes
 from viewcomp.rt.live import (
     InputHub,
@@ -527,10 +528,7 @@ class Player:
             w, h = o.size or (int(mode.size.width), int(mode.size.height))
             glfw.window_hint(glfw.REFRESH_RATE, int(mode.refresh_rate))
             glfw.window_hint(glfw.AUTO_ICONIFY, False)
-        glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
-        glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
-        glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
-        glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+        core_profile_hints(glfw)
         glfw.window_hint(glfw.DOUBLEBUFFER, True)
         glfw.window_hint(glfw.RESIZABLE, o.windowed)
         win = glfw.create_window(int(w), int(h), o.title, monitor, None)
