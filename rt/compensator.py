@@ -372,8 +372,7 @@ class Compensator:
             if not math.isfinite(float(model.gamma)):
                 raise ValueError(f"gamma must be finite, got {model.gamma}")
             self._consts["GAMMA"] = _lit(model.gamma)
-            self._consts["INV_LO"] = _vec(self._inv_lo)
-            self._consts["INV_SCALE"] = _vec(self._inv_scale())
+            self._consts.update(self._sq_consts())
         if model.method == "paper":
             self._Ww = _f32(model.Ww, (3, 3), "Ww").astype(np.float64)
             if model.Wc_inv is None:
@@ -393,9 +392,23 @@ class Compensator:
         self._yuv_key: tuple[str, str] = ("bt709", "limited")
 
     def _inv_scale(self) -> np.ndarray:
-        """(N - 1) / (hi - lo) per channel: inverse-LUT positions per unit of value."""
+        """(N - 1)^2 / (hi - lo) per channel: the inverse LUT's squared position t2 per unit
+        of value (``lut_inverse_sq`` in the shader: position sqrt(t2), t2 in [0, (N - 1)^2])."""
         span = np.maximum(self._inv_hi - self._inv_lo, 1e-12)
-        return (self._n_inv - 1) / span
+        return (self._n_inv - 1) ** 2 / span
+
+    def _sq_consts(self) -> dict[str, str]:
+        """SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI: t2 = clamp(SQ_SCALE y - SQ_OFF, SQ_LO, SQ_HI) is
+        the squared LUT position of the pixel method's y. It equals the reference's clamp of y
+        to [0, 1], then of the position to [0, (N - 1)^2], as one clamp: both are increasing,
+        so the inner bounds map to the outer ones."""
+        s, lo = self._inv_scale(), self._inv_lo
+        top = float((self._n_inv - 1) ** 2)
+        return {
+            "SQ_SCALE": _vec(s), "SQ_OFF": _vec(s * lo),
+            "SQ_LO": _vec(np.clip(-s * lo, 0.0, top)),
+            "SQ_HI": _vec(np.clip(s * (1.0 - lo), 0.0, top)),
+        }  # fmt: skip
 
     def _view_block(self, n: int) -> tuple[int, int]:
         """(bx, by): ``n`` texels of a pixel as a bx x by block of the view cache's target.

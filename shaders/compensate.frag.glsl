@@ -46,11 +46,14 @@
 #ifndef N_INV
 #define N_INV 2
 #endif
-#ifndef INV_LO
-#define INV_LO vec3(0.0)
-#endif
-#ifndef INV_SCALE
-#define INV_SCALE vec3(1.0)
+// The inverse LUT's squared position t2 = (N - 1)^2 (y - lo) / (hi - lo) of a value y, over
+// y in [0, 1] and within [0, (N - 1)^2]: t2 = clamp(SQ_SCALE y - SQ_OFF, SQ_LO, SQ_HI) (see
+// lut_inverse_sq; the bounds of both clamps folded into one pair, Compensator._sq_consts).
+#ifndef SQ_SCALE
+#define SQ_SCALE vec3(1.0)
+#define SQ_OFF vec3(0.0)
+#define SQ_LO vec3(0.0)
+#define SQ_HI vec3(1.0)
 #endif
 #ifndef KAPPA
 #define KAPPA vec3(0.0)
@@ -63,8 +66,9 @@
 
 in vec2 v_uv;
 // Per frame. pixel: [0] = (eye.xyz metres, alpha), [1].x = beta. paper: row i of
-// A = diag(s) alpha Wc_inv Ww in [i].xyz and c_i in [i].w, with s = (N - 1) / (hi - lo) and
-// c = s (beta Wc_inv 1 - lo): the inverse LUT's position is A fwd(I) + c (folded on the CPU).
+// A = diag(s) alpha Wc_inv Ww in [i].xyz and c_i in [i].w, with s = (N - 1)^2 / (hi - lo) and
+// c = s (beta Wc_inv 1 - lo): the inverse LUT's squared position t2 is A fwd(I) + c (folded
+// on the CPU; see lut_inverse_sq).
 flat in vec4 v_frame[4];
 
 uniform usampler2D u_rgb;     // frame, 8-bit levels (RGB8UI)
@@ -117,8 +121,10 @@ uniform samplerBuffer u_maps;
 // linear in the tone map: y = M^-1 (alpha (Ww Pw + Aw) + beta 1 - Ac)
 //                             = alpha (G Pw + a) + beta b - d,
 // with G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1, d = M^-1 Ac. METHOD 4 writes them, per pixel,
-// as 5 RGBA32F texels in a VIEW_BX x VIEW_BY block of a 2D render target (VIEW_BX W wide):
-// texel i < 3 = (row i of G, a_i), texel 3 = (b, 0), texel 4 = (d, 0); one fragment per
+// with row i scaled by SQ_SCALE_i and SQ_OFF added to d, so that the same formula gives the
+// inverse LUT's t2 = SQ_SCALE y - SQ_OFF directly (no per-frame scaling), as 5 RGBA32F
+// texels in a VIEW_BX x VIEW_BY block of a 2D render target (VIEW_BX W wide): texel i < 3 =
+// (row i of G, a_i), texel 3 = (b, 0), texel 4 = (d, 0); one fragment per
 // texel, each solving its pixel once (5x the work, once per eye). The target's rows are
 // then copied into the buffer texture u_view (row-major), and METHOD 3 reads 5 texels
 // instead of 8 and skips the lobe and the solve. Same formula, other rounding: tested
@@ -200,12 +206,14 @@ vec3 lut_forward(ivec3 level) {
                 texelFetch(u_fwd, 512 + level.b).r);
 }
 
-// Linear interpolation in the inverse LUT (reference.lut_inverse) at linear position
-// t = clamp((y - lo) / (hi - lo), 0, 1) * (N - 1); the LUT is sampled uniformly in the square
-// root of that fraction, so the position is warped first. Returns 0..1.
-vec3 lut_inverse_at(vec3 t_lin) {
-    vec3 t = sqrt(t_lin * (1.0 / float(N_INV - 1))) * float(N_INV - 1);
-    ivec3 i0 = min(ivec3(floor(t)), ivec3(N_INV - 2));
+// Linear interpolation in the inverse LUT (reference.lut_inverse). The LUT is sampled
+// uniformly in the square root of the fraction x = clamp((y - lo) / (hi - lo), 0, 1), so the
+// position is t = sqrt(x) (N - 1) = sqrt(t2) with t2 = x (N - 1)^2 in [0, (N - 1)^2], which
+// the callers compute with the scale folded into their constants. t >= 0 truncates to its
+// floor, and at t = N - 1 the last pair (inv_lut[N - 1] twice) applies. Returns 0..1.
+vec3 lut_inverse_sq(vec3 t2) {
+    vec3 t = sqrt(t2);
+    ivec3 i0 = ivec3(t);
     vec3 f = t - vec3(i0);
     vec2 ab0 = texelFetch(u_inv, i0.x).xy;
     vec2 ab1 = texelFetch(u_inv, N_INV + i0.y).xy;
@@ -225,13 +233,13 @@ void main() {
     PixelMaps m = read_maps(q / block);
     vec3 k0, k1, k2;
     float det = adjugate(m, v_frame[0].xyz, k0, k1, k2);
-    vec3 inv_det = vec3(1.0 / det);
+    vec3 inv_det = SQ_SCALE / det;  // rows scaled for the inverse LUT's t2 (METHOD 3)
     vec3 g0 = (k0 * m.w0.x + k1 * m.w1.x + k2 * m.w2.x) * inv_det;  // column 0 of G
     vec3 g1 = (k0 * m.w0.y + k1 * m.w1.y + k2 * m.w2.y) * inv_det;
     vec3 g2 = (k0 * m.w0.z + k1 * m.w1.z + k2 * m.w2.z) * inv_det;
     vec3 a = (k0 * m.w0.w + k1 * m.w1.w + k2 * m.w2.w) * inv_det;
     vec3 b = (k0 + k1 + k2) * inv_det;
-    vec3 d = (k0 * m.c0.w + k1 * m.c1.w + k2 * m.c2.w) * inv_det;
+    vec3 d = (k0 * m.c0.w + k1 * m.c1.w + k2 * m.c2.w) * inv_det + SQ_OFF;
     int i = min(k, 2);
     vec4 row = vec4(g0[i], g1[i], g2[i], a[i]);
     frag_color = k < 3 ? row : (k == 3 ? vec4(b, 0.0) : (k == 4 ? vec4(d, 0.0) : vec4(0.0)));
@@ -259,8 +267,7 @@ void main() {
         float det = adjugate(m, eye_alpha.xyz, k0, k1, k2);
         vec3 b = target - vec3(m.c0.w, m.c1.w, m.c2.w);
         vec3 y = (k0 * b.x + k1 * b.y + k2 * b.z) / det;
-        vec3 t = clamp((clamp(y, 0.0, 1.0) - INV_LO) * INV_SCALE, 0.0, float(N_INV - 1));
-        result = lut_inverse_at(t);
+        result = lut_inverse_sq(clamp(SQ_SCALE * y - SQ_OFF, SQ_LO, SQ_HI));
     }
 #elif METHOD == 3
     {
@@ -274,9 +281,9 @@ void main() {
         vec3 pw = lut_forward(level);
         vec3 gp = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw))
             + vec3(g0.w, g1.w, g2.w);
-        vec3 y = alpha * gp + beta * bv - dv;
-        vec3 t = clamp((clamp(y, 0.0, 1.0) - INV_LO) * INV_SCALE, 0.0, float(N_INV - 1));
-        result = lut_inverse_at(t);
+        // The cache holds SQ_SCALE (G, a, b) and SQ_SCALE d + SQ_OFF: this is t2 unclamped.
+        vec3 t2 = alpha * gp + beta * bv - dv;
+        result = lut_inverse_sq(clamp(t2, SQ_LO, SQ_HI));
     }
 #elif METHOD == 2
     {
@@ -284,8 +291,8 @@ void main() {
         vec4 a0 = v_frame[0];
         vec4 a1 = v_frame[1];
         vec4 a2 = v_frame[2];
-        vec3 t = vec3(dot(a0.xyz, pw), dot(a1.xyz, pw), dot(a2.xyz, pw)) + vec3(a0.w, a1.w, a2.w);
-        result = lut_inverse_at(clamp(t, 0.0, float(N_INV - 1)));
+        vec3 t2 = vec3(dot(a0.xyz, pw), dot(a1.xyz, pw), dot(a2.xyz, pw)) + vec3(a0.w, a1.w, a2.w);
+        result = lut_inverse_sq(clamp(t2, 0.0, float((N_INV - 1) * (N_INV - 1))));
     }
 #else
     result = vec3(level) / 255.0;
