@@ -213,6 +213,48 @@ def test_tone_map_search_skips_only_alphas_that_cannot_win(lam):
         assert (len(pruned) == len(alphas)) == (lam == 0)
 
 
+def _tone_by_counting(alpha, u, v, c, lo, hi, lam, mu, scale):
+    """One alpha of the tone-map solver by direct counting: every candidate beta (0, every
+    interval end) against every interval, no sorting tricks, no window."""
+    from viewcomp.calib.tonemap import BETA_LIMIT, ToneMap
+
+    var = np.abs(v) > 1e-12
+    y0 = alpha * u[var] + c[var]
+    b1 = np.clip((lo[var] - y0) / v[var], -BETA_LIMIT, BETA_LIMIT)
+    b2 = np.clip((hi[var] - y0) / v[var], -BETA_LIMIT, BETA_LIMIT)
+    starts, ends = np.minimum(b1, b2), np.maximum(b1, b2)
+    y_fixed = alpha * u[~var] + c[~var]
+    fixed = np.count_nonzero((y_fixed >= lo[~var]) & (y_fixed <= hi[~var]))
+    cand = np.concatenate([[0.0], np.sort(starts), np.sort(ends)])
+    inside = ((starts[None, :] <= cand[:, None]) & (cand[:, None] <= ends[None, :])).sum(axis=1)
+    clipped = 1.0 - (inside + fixed) / u.size
+    cost = clipped + lam * (1.0 - alpha) ** 2 + mu * (cand / scale) ** 2
+    ties = cost <= cost.min() + 1e-12
+    k = int(np.argmin(np.where(ties, np.abs(cand), np.inf)))
+    return ToneMap(alpha, float(cand[k]), float(clipped[k]), float(cost[k]))
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5, 3.0])
+def test_tone_map_solver_equals_direct_counting(mu):
+    """The solver (sorted runs, one merge, a window of betas that can beat beta = 0) gives,
+    per alpha, exactly what counting every candidate against every interval gives."""
+    from viewcomp.calib.tonemap import _best_per_alpha
+
+    rng = np.random.default_rng(13)
+    for trial in range(40):
+        n = int(rng.integers(1, 300))
+        u, v = rng.uniform(-0.2, 1.4, n), rng.uniform(-0.5, 1.5, n)
+        v[rng.random(n) < 0.1] = 0.0  # beta cannot move these
+        v[rng.random(n) < 0.05] = 1e-4  # |beta| beyond BETA_LIMIT: clipped
+        if trial % 4 == 0:  # many equal ends: ties
+            u, v = np.round(u, 1), np.round(v, 1)
+        c, lo, hi = rng.normal(0, 0.1, n), rng.uniform(-0.1, 0.1, n), rng.uniform(0.8, 1.2, n)
+        scale = float(rng.uniform(0.1, 1.0))
+        for alpha in (1.0, 0.9, 0.55):
+            got = _best_per_alpha(np.array([alpha]), u, v, c, lo, hi, 1.0, mu, scale)
+            assert got == [_tone_by_counting(alpha, u, v, c, lo, hi, 1.0, mu, scale)]
+
+
 def test_tone_map_is_identity_when_everything_fits():
     u = np.linspace(0.1, 0.9, 30).reshape(10, 3)
     t = choose_tone_map(u, np.ones_like(u), 0.0, 0.0, 1.0)
