@@ -27,7 +27,8 @@ Synthetic models (:mod:`viewcomp.rt.testing`) stand in for calibrations at 720p.
 GL cost depends on the grid, not on the numbers). Run from the repository root::
 
     .venv/bin/python bench/bench_render.py [--sizes 720p,1080p,2160p] [--repeats 5]
-        [--pipeline-frames 30,90] [--pipeline-rounds 3] [--skip-pipeline] > bench.json
+        [--pipeline-frames 30,90] [--pipeline-rounds 3] [--skip-pipeline | --pipeline-only]
+        > bench.json
 """
 
 from __future__ import annotations
@@ -326,7 +327,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--params-grid", default="320x160", help="calibration grid for params")
     ap.add_argument("--pipeline-rounds", type=int, default=3, help="pipeline repetitions")
     ap.add_argument("--skip-pipeline", action="store_true")
+    ap.add_argument(
+        "--pipeline-only", action="store_true", help="only pipeline_1080p (no per-frame parts)"
+    )
     args = ap.parse_args(argv)
+    if args.skip_pipeline and args.pipeline_only:
+        ap.error("--skip-pipeline and --pipeline-only exclude each other")
     counts = tuple(int(x) for x in args.pipeline_frames.split(","))
     t = time.perf_counter()
     ctx = create_context()
@@ -344,9 +350,10 @@ def main(argv: list[str] | None = None) -> int:
     }
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
-        sizes = args.sizes.split(",")
+        sizes = [] if args.pipeline_only else args.sizes.split(",")
         report["per_frame"] = {n: bench_size(ctx, n, args.repeats, tmp) for n in sizes}
-        report["cpu_reference_1080p"] = bench_cpu_1080p(max(2, args.repeats // 2))
+        if not args.pipeline_only:
+            report["cpu_reference_1080p"] = bench_cpu_1080p(max(2, args.repeats // 2))
         gl = report["per_frame"].get("1080p")
         if gl is not None:
             cpu = report["cpu_reference_1080p"]
@@ -358,8 +365,9 @@ def main(argv: list[str] | None = None) -> int:
                 m: {k: round(cpu[m][k] / per_frame(m, k), 1) for k in ("wall", "cpu")}
                 for m in ("pixel", "paper")
             }
-        gw, gh = (int(x) for x in args.params_grid.split("x"))
-        report["params"] = bench_params(max(3, args.repeats), (gw, gh))
+        if not args.pipeline_only:
+            gw, gh = (int(x) for x in args.params_grid.split("x"))
+            report["params"] = bench_params(max(3, args.repeats), (gw, gh))
         if not args.skip_pipeline:
             report["pipeline_1080p"] = bench_pipeline_1080p(
                 ctx,
