@@ -105,7 +105,7 @@ def _best_per_alpha(
             run /= vv
             run.sort()
             # Clipping is increasing: on a sorted run it keeps it sorted.
-            if run[0] < -BETA_LIMIT or run[-1] > BETA_LIMIT:
+            if m and (run[0] < -BETA_LIMIT or run[-1] > BETA_LIMIT):
                 np.clip(run, -BETA_LIMIT, BETA_LIMIT, out=run)
         at_zero = np.searchsorted(starts, 0.0, "right") - np.searchsorted(ends, 0.0, "left")
         clipped0 = 1.0 - (at_zero + fixed_in) / total

@@ -250,6 +250,8 @@ def test_tone_map_solver_equals_direct_counting(mu):
             u, v = np.round(u, 1), np.round(v, 1)
         c, lo, hi = rng.normal(0, 0.1, n), rng.uniform(-0.1, 0.1, n), rng.uniform(0.8, 1.2, n)
         scale = float(rng.uniform(0.1, 1.0))
+        if trial == 1:
+            v[:] = 0.0  # no beta moves anything: only beta = 0 is a candidate
         for alpha in (1.0, 0.9, 0.55):
             got = _best_per_alpha(np.array([alpha]), u, v, c, lo, hi, 1.0, mu, scale)
             assert got == [_tone_by_counting(alpha, u, v, c, lo, hi, 1.0, mu, scale)]
