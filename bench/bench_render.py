@@ -11,9 +11,9 @@ much less, so compare ratios within one run and look at both.
   eye, what a constant ``--angle`` runs), ``pixel_packed`` (20-bit maps, solved) and
   ``paper`` on planes and on RGB, ``view_cache_build_and_draw_rgb`` (a new eye: the whole
   cache rebuilt, then a draw), read-back; start-up (program compile, model upload) apart.
-- ``cpu_reference_1080p``: the numpy reference (``viewcomp.calib.reference.compensate``) and
+- ``cpu_reference_1080p``: the numpy reference (``viewcomp.calib.model.reference.compensate``) and
   ``speedup_1080p`` = reference / GL (upload RGB + shader + read-back).
-- ``params``: ``comp(thumb, eye, t)`` of ``viewcomp.calib.compensation.Compensation`` on a
+- ``params``: ``comp(thumb, eye, t)`` of ``viewcomp.calib.comp.compensation.Compensation`` on a
   real (simulated) calibration, the eye fixed or moving every frame, thumbnail included.
 - ``pipeline_1080p``: the whole ``render_file`` (decode -> thumbnail -> params -> GL ->
   x264 CRF 18 preset veryfast on its own thread), marginal per frame = (time for 90 frames -
@@ -21,7 +21,7 @@ much less, so compare ratios within one run and look at both.
   the configurations in turn: identity; pixel with a fixed tone map (the GL pipeline alone);
   pixel with the real per-frame tone map at a constant angle (``viewcomp render --angle``)
   and with the eye moving every frame (``--track``). The clip: a 1080p pan over a
-  procedural landscape (``viewcomp.calib.testimages``), clean and with sensor-like grain.
+  procedural landscape (``viewcomp.calib.eval.testimages``), clean and with sensor-like grain.
 
 Synthetic models (:mod:`viewcomp.rt.testing`) stand in for calibrations at 720p..2160p (the
 GL cost depends on the grid, not on the numbers). Run from the repository root::
@@ -50,14 +50,14 @@ from typing import Any
 import av
 import numpy as np
 
-from viewcomp.calib.reference import compensate
-from viewcomp.rt.compensator import Compensator, eye_from_angle
-from viewcomp.rt.context import create_context, finish
-from viewcomp.rt.frames import rgb_to_yuv420p, yuv420p_to_rgb
-from viewcomp.rt.pipeline import render_file
+from viewcomp.calib.model.reference import compensate
+from viewcomp.rt.gl.compensator import Compensator, eye_from_angle
+from viewcomp.rt.gl.context import create_context, finish
+from viewcomp.rt.media.frames import rgb_to_yuv420p, yuv420p_to_rgb
+from viewcomp.rt.media.video import VideoReader
+from viewcomp.rt.render.pipeline import render_file
+from viewcomp.rt.render.tracks import constant_angle
 from viewcomp.rt.testing import SyntheticCompensation, smooth_frame, synthetic_model
-from viewcomp.rt.tracks import constant_angle
-from viewcomp.rt.video import VideoReader
 
 SIZES = {"720p": (1280, 720), "1080p": (1920, 1080), "2160p": (3840, 2160)}
 EYE = eye_from_angle(60.0, 0.5, 0.035)
@@ -82,7 +82,7 @@ def _measure(fn: Callable[[], object], repeats: int) -> dict[str, float]:
 
 def _pan_frames(w: int, h: int, frames: int, grain: float) -> Callable[[int], np.ndarray]:
     """Frame i of a pan (4 px/frame) over a procedural landscape, with Gaussian grain."""
-    from viewcomp.calib.testimages import procedural_images
+    from viewcomp.calib.eval.testimages import procedural_images
 
     base = procedural_images(w + 4 * frames, h)["landscape"]
     rng = np.random.default_rng(0)
@@ -199,9 +199,9 @@ def bench_cpu_1080p(repeats: int) -> dict[str, Any]:
 def bench_params(repeats: int, grid: tuple[int, int]) -> dict[str, Any]:
     """comp(thumb, eye, t) of the real Compensation, thumbnail of a 1080p frame included."""
     try:
-        from viewcomp.calib.compensation import THUMB_SIDE, Compensation
-        from viewcomp.calib.testing import small_calibration
-        from viewcomp.rt.frames import thumbnail_planes
+        from viewcomp.calib.comp.compensation import THUMB_SIDE, Compensation
+        from viewcomp.calib.sim.testing import small_calibration
+        from viewcomp.rt.media.frames import thumbnail_planes
     except ImportError as exc:
         return {"unavailable": str(exc)}
     cal = small_calibration(w=grid[0], h=grid[1])
@@ -229,7 +229,7 @@ def bench_params(repeats: int, grid: tuple[int, int]) -> dict[str, Any]:
 
 def _real_tone_comp(model: Any) -> Any:
     """The real Compensation (per-frame tone map) on a synthetic 1080p pixel model."""
-    from viewcomp.calib.compensation import Compensation
+    from viewcomp.calib.comp.compensation import Compensation
 
     cal = SimpleNamespace(shape=model.shape, pixel=SimpleNamespace(runtime_model=lambda: model))
     return Compensation(cal, "pixel", tau=0.5)  # type: ignore[arg-type]

@@ -11,7 +11,7 @@ swaps. viewcomp never touches the window, the swap or the event loop.
     python examples/embed_host.py --frames 60 --check   # headless check (e.g. under Xvfb)
 
 ``--check`` compares one presented frame with the numpy reference
-(viewcomp.calib.reference.compensate with the same FrameParams) and exits non-zero if more
+(viewcomp.calib.model.reference.compensate with the same FrameParams) and exits non-zero if more
 than 0.1 % of pixel-channels differ by more than one level.
 """
 
@@ -26,12 +26,12 @@ import glfw
 import moderngl
 import numpy as np
 
-from viewcomp.calib.calibrate import Calibration
-from viewcomp.calib.reference import compensate
-from viewcomp.rt.embed import LiveRenderer
-from viewcomp.rt.frames import Planes, yuv420p_to_rgb
+from viewcomp.calib.fit.calibrate import Calibration
+from viewcomp.calib.model.reference import compensate
+from viewcomp.rt.media.frames import Planes, yuv420p_to_rgb
+from viewcomp.rt.media.video import VideoReader
+from viewcomp.rt.play.embed import LiveRenderer
 from viewcomp.rt.testing import smooth_frame
-from viewcomp.rt.video import VideoReader
 
 
 def tracker_angle(t: float) -> float:
@@ -67,7 +67,7 @@ def main() -> int:
     if args.calib:
         cal = Calibration.load(args.calib)
     else:
-        from viewcomp.calib.testing import small_calibration
+        from viewcomp.calib.sim.testing import small_calibration
 
         cal = small_calibration(160, 90, screen="magenta")
     width, height = (int(v) for v in args.size.split("x"))

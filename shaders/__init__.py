@@ -10,7 +10,7 @@ Files:
 
 - ``fullscreen.vert.glsl``: a fullscreen triangle from ``gl_VertexID`` (no vertex buffer).
 - ``yuv.glsl``: yuv420p planes (Y R8UI, UV RG8UI) -> RGB 8-bit levels, fixed point, bit-exact
-  with :func:`viewcomp.rt.frames.yuv420p_to_rgb` (included by the fragment shader).
+  with :func:`viewcomp.rt.media.frames.yuv420p_to_rgb` (included by the fragment shader).
 - ``compensate.frag.glsl``: the per-pixel formula of docs/RUNTIME.md for the methods
   ``identity``, ``pixel`` and ``paper``, one fragment path.
 """

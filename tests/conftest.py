@@ -19,7 +19,7 @@ _GL: dict[str, Any] = {}
 def _context() -> Any:
     """The session's context, made on first use; raises GLUnavailable if impossible."""
     if "ctx" not in _GL and "error" not in _GL:
-        from viewcomp.rt.context import GLUnavailable, create_context
+        from viewcomp.rt.gl.context import GLUnavailable, create_context
 
         try:
             _GL["ctx"] = create_context()

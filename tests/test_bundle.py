@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from viewcomp.calib.bundle import SCHEMA_VERSION, BundleError, load_bundle, save_bundle
+from viewcomp.calib.io.bundle import SCHEMA_VERSION, BundleError, load_bundle, save_bundle
 
 
 def _arrays() -> dict[str, np.ndarray]:

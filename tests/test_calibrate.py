@@ -5,19 +5,19 @@ import shutil
 import numpy as np
 import pytest
 
-from viewcomp.calib.bundle import BundleError
-from viewcomp.calib.calibrate import Calibration, calibrate
-from viewcomp.calib.capture import capture_set_from_raw, read_capture_set
-from viewcomp.calib.compensation import Compensation
+from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.errors import FitError
-from viewcomp.calib.geometry import eye_from_angle
-from viewcomp.calib.imageio import read_image, write_png
-from viewcomp.calib.metrics import sse
-from viewcomp.calib.reference import lobe_change, target_to_projector
-from viewcomp.calib.simulate import capture_patterns, simulate_capture_set
-from viewcomp.calib.simulator import make_screen, white_screen
-from viewcomp.calib.testimages import uniform
-from viewcomp.calib.testing import small_calibration, small_simulator
+from viewcomp.calib.eval.metrics import sse
+from viewcomp.calib.eval.testimages import uniform
+from viewcomp.calib.fit.calibrate import Calibration, calibrate
+from viewcomp.calib.io.bundle import BundleError
+from viewcomp.calib.io.captureset import capture_set_from_raw, read_capture_set
+from viewcomp.calib.io.imageio import read_image, write_png
+from viewcomp.calib.model.reference import lobe_change, target_to_projector
+from viewcomp.calib.sim.simulate import capture_patterns, simulate_capture_set
+from viewcomp.calib.sim.simulator import make_screen, white_screen
+from viewcomp.calib.sim.testing import small_calibration, small_simulator
+from viewcomp.calib.world.eye import eye_from_angle
 
 W, H = 128, 64
 
@@ -87,8 +87,8 @@ def test_bundle_round_trip_gives_identical_output(world, tmp_path):
     image = uniform((120, 40, 200), W, H)
     eye = eye_from_angle(70, 0.5, 0.035)
     for method in ("pixel", "paper"):
-        a, _ = cal.compensate(image, eye, method)
-        b, _ = again.compensate(image, eye, method)
+        a = Compensation(cal, method).compensate_image(image, eye)[0]
+        b = Compensation(again, method).compensate_image(image, eye)[0]
         np.testing.assert_array_equal(a, b)
 
 
@@ -106,7 +106,7 @@ def test_corrupt_and_truncated_bundles_are_refused(world, tmp_path):
 
 
 def _capture_dir(tmp_path, white, real, sim):
-    from viewcomp.calib.capture import write_capture_set
+    from viewcomp.calib.io.captureset import write_capture_set
 
     d = tmp_path / "caps"
     write_capture_set(d, sim.rig, white, real)

@@ -15,17 +15,22 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.calibrate import Calibration
-from viewcomp.calib.capture import read_capture_set
-from viewcomp.calib.imageio import CaptureError
-from viewcomp.calib.rig import load_rig
-from viewcomp.calib.simcamera import scaled_camera_rig, written_rig
-from viewcomp.calib.simulate import simulation_rig
-from viewcomp.calib.simulator import CameraPhysics, Simulator, make_screen, white_screen
+from viewcomp.calib.fit.calibrate import Calibration
+from viewcomp.calib.hw import devices
+from viewcomp.calib.hw.devices import OpenCVCamera, SimulatedRig, average_frames
+from viewcomp.calib.hw.procedure import capture_plan, run_capture
+from viewcomp.calib.io.captureset import read_capture_set
+from viewcomp.calib.io.imageio import CaptureError
+from viewcomp.calib.sim.simcamera import scaled_camera_rig, written_rig
+from viewcomp.calib.sim.simulator import (
+    CameraPhysics,
+    Simulator,
+    make_screen,
+    simulation_rig,
+    white_screen,
+)
+from viewcomp.calib.world.rig import load_rig
 from viewcomp.cli import main
-from viewcomp.rt import devices
-from viewcomp.rt.capture import capture_plan, run_capture
-from viewcomp.rt.devices import OpenCVCamera, SimulatedRig, average_frames
 
 SIZE = (160, 80)
 
@@ -269,8 +274,9 @@ def xvfb() -> Iterator[str]:
 
 _PROJECTOR_SCRIPT = """
 import numpy as np
-from viewcomp.rt import devices
-with devices.GlfwProjector(0) as proj:
+from viewcomp.calib.hw import devices
+from viewcomp.rt.play import projector
+with projector.GlfwProjector(0) as proj:
     assert proj.resolution == (320, 200), proj.resolution
     rng = np.random.default_rng(0)
     for _ in range(2):
@@ -284,7 +290,7 @@ with devices.GlfwProjector(0) as proj:
     else:
         raise AssertionError("a float image was shown")
 try:
-    devices.GlfwProjector(5)
+    projector.GlfwProjector(5)
 except devices.DeviceError as e:
     assert "no monitor 5" in str(e), e
 else:

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from viewcomp.calib.imageio import read_image, write_png
+from viewcomp.calib.io.imageio import read_image, write_png
 from viewcomp.cli import COMMANDS, main
 
 SIZE = "96x48"
@@ -108,8 +108,8 @@ def test_evaluate_table2_report(tmp_path):
 
 
 def test_sweep_rows_and_checks():
-    from viewcomp.calib.evaluate import World, check_sweep, sweep, sweep_means
-    from viewcomp.calib.testimages import natural_images
+    from viewcomp.calib.eval.evaluate import World, check_sweep, sweep, sweep_means
+    from viewcomp.calib.eval.testimages import natural_images
 
     world = World.make(size=(64, 32))
     imgs = dict(list(natural_images(64, 32).items())[:1])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from viewcomp.calib.evaluate import (
+from viewcomp.calib.eval.evaluate import (
     World,
     check_sweep,
     check_table2,
@@ -12,7 +12,7 @@ from viewcomp.calib.evaluate import (
     sweep_means,
     table2,
 )
-from viewcomp.calib.testimages import natural_images
+from viewcomp.calib.eval.testimages import natural_images
 
 
 @pytest.mark.slow

@@ -10,12 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.calibrate import calibrate
-from viewcomp.calib.capture import capture_set_from_raw, write_capture_set
 from viewcomp.calib.errors import FitError
-from viewcomp.calib.evaluate import World as EvalWorld
-from viewcomp.calib.evaluate import check_table2, sweep, sweep_means, table2
-from viewcomp.calib.geocal import (
+from viewcomp.calib.eval.evaluate import World as EvalWorld
+from viewcomp.calib.eval.evaluate import check_table2, sweep, sweep_means, table2
+from viewcomp.calib.eval.testimages import natural_images
+from viewcomp.calib.fit.calibrate import calibrate
+from viewcomp.calib.geo.geocal import (
     BORDER_PX,
     calibrate_geometry,
     distort_normalised,
@@ -24,19 +24,25 @@ from viewcomp.calib.geocal import (
     rectify,
     rectify_capture_set,
 )
-from viewcomp.calib.imageio import to_linear
-from viewcomp.calib.patterns import chessboard
-from viewcomp.calib.rig import Rig
-from viewcomp.calib.simcamera import (
+from viewcomp.calib.io.captureset import capture_set_from_raw, write_capture_set
+from viewcomp.calib.io.imageio import to_linear
+from viewcomp.calib.io.patterns import chessboard
+from viewcomp.calib.sim.simcamera import (
     SimCamera,
     capture_camera_patterns,
     scaled_camera_rig,
     true_projector_map,
     written_rig,
 )
-from viewcomp.calib.simulate import capture_patterns, simulation_rig
-from viewcomp.calib.simulator import CameraPhysics, Simulator, make_screen, white_screen
-from viewcomp.calib.testimages import natural_images
+from viewcomp.calib.sim.simulate import capture_patterns
+from viewcomp.calib.sim.simulator import (
+    CameraPhysics,
+    Simulator,
+    make_screen,
+    simulation_rig,
+    white_screen,
+)
+from viewcomp.calib.world.rig import Rig
 from viewcomp.cli import main
 
 SIZE = (320, 160)  # projector; the camera is 640x360, ~1.2 camera px per projector px
@@ -286,7 +292,7 @@ def test_response_is_estimated_from_the_graycode_and_a_wrong_one_refused() -> No
 
 @pytest.mark.parametrize("truth", ["linear", "srgb", 2.4])
 def test_estimate_response_on_synthetic_stripe_edges(truth) -> None:
-    from viewcomp.calib.response import parse_response
+    from viewcomp.calib.world.response import parse_response
 
     rng = np.random.default_rng(0)
     white = rng.uniform(0.3, 0.9, (2000, 1, 3))

@@ -9,15 +9,15 @@ import moderngl
 import numpy as np
 import pytest
 
-from viewcomp.calib.geometry import eye_from_angle
-from viewcomp.calib.reference import compensate
-from viewcomp.rt.compensator import (
+from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.rt.gl.compensator import (
     Compensator,
     pack_pixel_maps,
     unpack_pixel_maps,
 )
-from viewcomp.rt.context import live_gl_objects
-from viewcomp.rt.frames import Planes, rgb_to_yuv420p, yuv420p_to_rgb
+from viewcomp.rt.gl.context import live_gl_objects
+from viewcomp.rt.media.frames import Planes, rgb_to_yuv420p, yuv420p_to_rgb
 from viewcomp.rt.testing import (
     make_compensation,
     smooth_frame,
@@ -87,7 +87,7 @@ def real(request):
 @pytest.mark.parametrize("cached", [False, True], ids=["solve", "cached"])
 def test_gl_matches_reference_on_a_real_calibration(gl_ctx, real, angle, kind, cached) -> None:
     """Frame parameters from Compensation (model at the eye, tone map) into both backends."""
-    from viewcomp.calib.compensation import thumbnail
+    from viewcomp.calib.comp.compensation import thumbnail
 
     h, w = real.shape
     frame = smooth_frame(w, h, seed=6) if kind == "smooth" else uniform_frame(w, h)
@@ -130,7 +130,7 @@ def test_video_planes_match_reference(comp_and_model) -> None:
 
 
 def test_packing_round_trip_error_is_half_a_step() -> None:
-    from viewcomp.rt.compensator import PACKED_LAYOUT, _pixel_arrays
+    from viewcomp.rt.gl.compensator import PACKED_LAYOUT, _pixel_arrays
 
     model, lobe = _pixel_arrays(synthetic_model("pixel", 40, 24, seed=2))
     images, scale, offset = pack_pixel_maps(model, lobe)
@@ -235,7 +235,7 @@ def test_yuv_conversion(gl_ctx, colorspace: str, color_range: str) -> None:
     # Float reference on chroma upsampled with the same weights.
     kr, kb = {"bt601": (0.299, 0.114), "bt709": (0.2126, 0.0722)}[colorspace]
     kg = 1 - kr - kb
-    from viewcomp.rt.frames import _chroma8
+    from viewcomp.rt.media.frames import _chroma8
 
     cb = _chroma8(planes.u, h, w) / 8.0 - 128.0
     cr = _chroma8(planes.v, h, w) / 8.0 - 128.0

@@ -10,14 +10,14 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.capture import (
+from viewcomp.calib.io.captureset import (
     OPTIONAL,
     REQUIRED,
     find_capture,
     read_capture_set,
     write_capture_set,
 )
-from viewcomp.calib.imageio import (
+from viewcomp.calib.io.imageio import (
     CaptureError,
     atomic_open,
     read_image,
@@ -25,8 +25,8 @@ from viewcomp.calib.imageio import (
     write_npy,
     write_png,
 )
-from viewcomp.calib.response import parse_response
-from viewcomp.calib.rig import CaptureSpec, Rig, RigError, default_rig
+from viewcomp.calib.world.response import parse_response
+from viewcomp.calib.world.rig import CaptureSpec, Rig, RigError, default_rig
 
 W, H = 32, 16
 

@@ -14,7 +14,7 @@ import pytest
 from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from viewcomp.rt.live import (
+from viewcomp.rt.play.live import (
     ANGLE_ADDRESS,
     EYE_ADDRESS,
     MAX_LINE,
@@ -177,7 +177,7 @@ def test_eye_state_instant_and_nudge() -> None:
 # ----------------------------------------------------------------------- hub, listeners
 def test_hub_counts_and_rate_limited_log(caplog: pytest.LogCaptureFixture) -> None:
     hub = InputHub()
-    with caplog.at_level(logging.WARNING, logger="viewcomp.rt.live"):
+    with caplog.at_level(logging.WARNING, logger="viewcomp.rt.play.live"):
         for i in range(100):
             hub.reject("osc", f"bad {i}")
     hub.put("osc", SetAngle(10.0))

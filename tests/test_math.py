@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from viewcomp.calib.comp.tonemap import ToneSmoother, choose_tone_map
 from viewcomp.calib.errors import FitError
-from viewcomp.calib.geometry import ScreenGeometry, eye_from_angle, reflection_vectors
-from viewcomp.calib.paper import (
+from viewcomp.calib.fit.paper import (
     fit_phong,
     inverse_lut,
     level_means,
@@ -13,10 +13,11 @@ from viewcomp.calib.paper import (
     regress_rho,
     specular_map,
 )
-from viewcomp.calib.pixel import fit_lobe
-from viewcomp.calib.reference import lut_forward, lut_inverse
-from viewcomp.calib.simulate import simulation_rig
-from viewcomp.calib.tonemap import ToneSmoother, choose_tone_map
+from viewcomp.calib.fit.pixel import fit_lobe
+from viewcomp.calib.model.reference import lut_forward, lut_inverse
+from viewcomp.calib.sim.simulator import simulation_rig
+from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.calib.world.geometry import ScreenGeometry, reflection_vectors
 
 W_TRUE = np.array([[0.70, 0.08, 0.02], [0.06, 0.18, 0.05], [0.01, 0.07, 0.55]])
 
@@ -55,9 +56,9 @@ def test_eq16_refuses_a_pattern_not_brighter_in_its_own_channel():
 
 
 def test_w_tilde_recovered_under_noise_from_simulated_captures():
-    from viewcomp.calib.simulate import capture_patterns
-    from viewcomp.calib.simulator import make_screen
-    from viewcomp.calib.testing import small_simulator
+    from viewcomp.calib.sim.simulate import capture_patterns
+    from viewcomp.calib.sim.simulator import make_screen
+    from viewcomp.calib.sim.testing import small_simulator
 
     sim = small_simulator(128, 64, seed=3)
     screen = make_screen("green", "matte")
@@ -190,7 +191,7 @@ def test_tone_map_solver_matches_brute_force(mu):
 def test_tone_map_search_skips_only_alphas_that_cannot_win(lam):
     """The alpha search stops where lam (1 - alpha)^2 alone exceeds the best cost: the pruned
     search picks what evaluating every alpha on its own picks."""
-    from viewcomp.calib.tonemap import _best_per_alpha
+    from viewcomp.calib.comp.tonemap import _best_per_alpha
 
     rng = np.random.default_rng(11)
     alphas = np.round(np.arange(1.0, 0.0999, -0.05), 2)
@@ -216,7 +217,7 @@ def test_tone_map_search_skips_only_alphas_that_cannot_win(lam):
 def _tone_by_counting(alpha, u, v, c, lo, hi, lam, mu, scale):
     """One alpha of the tone-map solver by direct counting: every candidate beta (0, every
     interval end) against every interval, no sorting tricks, no window."""
-    from viewcomp.calib.tonemap import BETA_LIMIT, ToneMap
+    from viewcomp.calib.comp.tonemap import BETA_LIMIT, ToneMap
 
     var = np.abs(v) > 1e-12
     y0 = alpha * u[var] + c[var]
@@ -238,7 +239,7 @@ def _tone_by_counting(alpha, u, v, c, lo, hi, lam, mu, scale):
 def test_tone_map_solver_equals_direct_counting(mu):
     """The solver (sorted runs, one merge, a window of betas that can beat beta = 0) gives,
     per alpha, exactly what counting every candidate against every interval gives."""
-    from viewcomp.calib.tonemap import _best_per_alpha
+    from viewcomp.calib.comp.tonemap import _best_per_alpha
 
     rng = np.random.default_rng(13)
     for trial in range(40):

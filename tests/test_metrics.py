@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from viewcomp.calib.metrics import delta_e2000, psnr, sse, ssim
+from viewcomp.calib.eval.metrics import delta_e2000, psnr, sse, ssim
 
 
 def _img(seed: int, h: int = 16, w: int = 24) -> np.ndarray:

@@ -20,12 +20,12 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.compensation import Compensation, thumbnail
-from viewcomp.calib.reference import compensate, lut_forward, lut_inverse
-from viewcomp.calib.testing import small_calibration
-from viewcomp.rt.mpv import TONE_TABLE, ExportError, export_mpv_shader, full_range_sample
+from viewcomp.calib.comp.compensation import Compensation, thumbnail
+from viewcomp.calib.model.reference import compensate, lut_forward, lut_inverse
+from viewcomp.calib.sim.testing import small_calibration
+from viewcomp.rt.export.mpv import TONE_TABLE, ExportError, export_mpv_shader, full_range_sample
+from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
 from viewcomp.rt.testing import smooth_frame
-from viewcomp.rt.xvfb import Xvfb, xvfb_available
 
 pytestmark = pytest.mark.usefixtures("session_gl_current")
 

@@ -9,15 +9,15 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.imageio import read_image
-from viewcomp.calib.patterns import (
+from viewcomp.calib.eval.testimages import natural_images, procedural_images, uniform
+from viewcomp.calib.io.imageio import read_image
+from viewcomp.calib.io.patterns import (
     chessboard,
     graycode_patterns,
     ramp_levels,
     table1_patterns,
     write_patterns,
 )
-from viewcomp.calib.testimages import natural_images, procedural_images, uniform
 
 
 def test_table1_colours() -> None:

@@ -24,12 +24,12 @@ import numpy as np
 import pytest
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from viewcomp.calib.reference import compensate
-from viewcomp.calib.testing import small_calibration
-from viewcomp.rt.audio import open_alsa
-from viewcomp.rt.frames import yuv420p_to_rgb
+from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.sim.testing import small_calibration
+from viewcomp.rt.media.audio import open_alsa
+from viewcomp.rt.media.frames import yuv420p_to_rgb
+from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
 from viewcomp.rt.testing import make_test_video
-from viewcomp.rt.xvfb import Xvfb, xvfb_available
 
 pytestmark = pytest.mark.usefixtures("session_gl_current")
 
@@ -91,7 +91,7 @@ def level_diff(got: np.ndarray, want: np.ndarray) -> tuple[int, int]:
 
 
 def _options(**kw: Any) -> Any:
-    from viewcomp.rt.player import PlayerOptions
+    from viewcomp.rt.play.player import PlayerOptions
 
     base = dict(windowed=True, audio=False, stdin_fd=None, max_seconds=30.0)
     base.update(kw)
@@ -108,7 +108,7 @@ def _osc(address: str, *args: float) -> bytes:
 # ----------------------------------------------------------------------- playback
 @pytest.mark.gl
 def test_plays_in_order_with_audio_and_releases(display: str, cal: Any, clip: Path) -> None:
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.player import Player
 
     audio_ok = open_alsa("null") is not None
     times: list[float] = []
@@ -128,7 +128,7 @@ def test_plays_in_order_with_audio_and_releases(display: str, cal: Any, clip: Pa
 
 @pytest.mark.gl
 def test_playlist_loop_and_stop(display: str, cal: Any, short_clip: Path, tmp_path: Path) -> None:
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.player import Player
 
     folder = tmp_path / "kiosk"
     folder.mkdir()
@@ -153,7 +153,7 @@ def test_playlist_loop_and_stop(display: str, cal: Any, short_clip: Path, tmp_pa
 def test_osc_and_stdin_change_the_picture_within_two_frames(
     display: str, cal: Any, clip: Path
 ) -> None:
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.player import Player
 
     r, w = os.pipe()
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -230,8 +230,8 @@ def test_osc_and_stdin_change_the_picture_within_two_frames(
 def test_paper_method_follows_the_eye(display: str, cal: Any, clip: Path) -> None:
     """The paper method's model depends on the eye: it is re-uploaded when it changes, and
     every frame matches the reference with the FrameParams it used."""
-    from viewcomp.rt.live import SetAngle
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.live import SetAngle
+    from viewcomp.rt.play.player import Player
 
     target = cal.eye(angle=50.0)
     seen: dict[str, Any] = {"worst": (0, 0), "frames_to_model": None}
@@ -261,8 +261,8 @@ def test_keys_mouse_overlay_and_ab(display: str, cal: Any, clip: Path) -> None:
     """The glfw callbacks as glfw calls them (no real key presses under Xvfb)."""
     import glfw
 
-    from viewcomp.rt.live import eye_to_polar
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.live import eye_to_polar
+    from viewcomp.rt.play.player import Player
 
     log: dict[str, Any] = {}
 
@@ -380,7 +380,7 @@ print(json.dumps({"count": count, "seconds": time.monotonic() - t0}))
 
 @pytest.mark.gl
 def test_fuzzed_inputs_while_playing(display: str, cal: Any, clip: Path) -> None:
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.player import Player
 
     n = 10_000
     r, w = os.pipe()
@@ -501,7 +501,7 @@ def test_embed_example_checks_against_reference(display: str) -> None:
 @pytest.mark.slow
 def test_measure_720p_at_1280x720(display: str, tmp_path: Path) -> None:
     """A 720p 30 fps clip, fullscreen 1280x720 on Xvfb, a 640x320 calibration: printed."""
-    from viewcomp.rt.player import Player
+    from viewcomp.rt.play.player import Player
 
     video = tmp_path / "clip720.mp4"
     make_test_video(str(video), 1280, 720, seconds=10.0, rate=RATE, audio=True)

@@ -9,7 +9,7 @@ import av
 import numpy as np
 import pytest
 
-from viewcomp.rt.audio import AudioPlayer, open_alsa
+from viewcomp.rt.media.audio import AudioPlayer, open_alsa
 
 RATE = 48000
 CHUNK = 1024

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewcomp.calib.response import Response, parse_response
+from viewcomp.calib.world.response import Response, parse_response
 
 
 @pytest.mark.parametrize("spec", ["linear", "srgb", 2.2, 1.8, "2.4", "SRGB"])

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from viewcomp.calib.rig import (
+from viewcomp.calib.world.rig import (
     Camera,
     CaptureSpec,
     Device,

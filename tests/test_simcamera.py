@@ -10,10 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.capture import read_capture_set
-from viewcomp.calib.patterns import table1_patterns
-from viewcomp.calib.rig import Rig, load_rig
-from viewcomp.calib.simcamera import (
+from viewcomp.calib.io.captureset import read_capture_set
+from viewcomp.calib.io.patterns import table1_patterns
+from viewcomp.calib.sim.simcamera import (
     SIM_CAMERA_DISTORTION,
     SimCamera,
     camera_rig,
@@ -22,8 +21,15 @@ from viewcomp.calib.simcamera import (
     true_camera_points,
     true_projector_map,
 )
-from viewcomp.calib.simulate import simulate_capture_set, simulation_rig
-from viewcomp.calib.simulator import CameraPhysics, Simulator, make_screen, white_screen
+from viewcomp.calib.sim.simulate import simulate_capture_set
+from viewcomp.calib.sim.simulator import (
+    CameraPhysics,
+    Simulator,
+    make_screen,
+    simulation_rig,
+    white_screen,
+)
+from viewcomp.calib.world.rig import Rig, load_rig
 
 
 def small_rig(w: int = 160, h: int = 80) -> Rig:

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from viewcomp.calib.geometry import eye_from_angle
-from viewcomp.calib.simulator import SimulatorError, make_screen, white_screen
-from viewcomp.calib.testimages import uniform
-from viewcomp.calib.testing import small_simulator
+from viewcomp.calib.eval.testimages import uniform
+from viewcomp.calib.sim.simulator import SimulatorError, make_screen, white_screen
+from viewcomp.calib.sim.testing import small_simulator
+from viewcomp.calib.world.eye import eye_from_angle
 
 W, H = 96, 48
 

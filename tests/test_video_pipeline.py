@@ -12,12 +12,14 @@ import cv2
 import numpy as np
 import pytest
 
-from viewcomp.calib.compensation import thumbnail
-from viewcomp.calib.geometry import eye_from_angle
-from viewcomp.calib.reference import compensate
-from viewcomp.rt.context import GLUnavailable, live_gl_objects
-from viewcomp.rt.frames import fit_rgb
-from viewcomp.rt.pipeline import ImageError, render_file
+from viewcomp.calib.comp.compensation import thumbnail
+from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.rt.gl.context import GLUnavailable, live_gl_objects
+from viewcomp.rt.media.frames import fit_rgb
+from viewcomp.rt.media.video import VideoError, VideoReader
+from viewcomp.rt.render.pipeline import ImageError, render_file
+from viewcomp.rt.render.tracks import AngleTrack, TrackError, constant_angle, load_angle_track
 from viewcomp.rt.testing import (
     SyntheticCompensation,
     make_compensation,
@@ -25,8 +27,6 @@ from viewcomp.rt.testing import (
     smooth_frame,
     synthetic_model,
 )
-from viewcomp.rt.tracks import AngleTrack, TrackError, constant_angle, load_angle_track
-from viewcomp.rt.video import VideoError, VideoReader
 
 W, H = 192, 108
 
@@ -216,7 +216,7 @@ def test_failing_comp_leaves_no_output(clip, tmp_path) -> None:
 
 
 def test_comp_must_look_like_a_compensation(clip, tmp_path) -> None:
-    with pytest.raises(TypeError, match=r"comp must be a viewcomp.calib.compensation"):
+    with pytest.raises(TypeError, match=r"comp must be a viewcomp.calib.comp.compensation"):
         render_file(synthetic_model("paper", 8, 8), clip, tmp_path / "o.mp4",  # type: ignore[arg-type]
                     constant_angle(90, 0.5, 0.0), backend="cpu", progress=False)  # fmt: skip
     comp = fake("paper", 16, 8)
@@ -277,10 +277,10 @@ def test_missing_egl_driver_in_a_subprocess(tmp_path) -> None:
     cv2.imwrite(str(tmp_path / "in.png"), np.zeros((8, 8, 3), np.uint8))
     code = (
         "import sys\n"
-        "from viewcomp.rt.pipeline import render_file\n"
+        "from viewcomp.rt.render.pipeline import render_file\n"
         "from viewcomp.rt.testing import SyntheticCompensation, synthetic_model\n"
-        "from viewcomp.rt.tracks import constant_angle\n"
-        "from viewcomp.rt.context import GLUnavailable\n"
+        "from viewcomp.rt.render.tracks import constant_angle\n"
+        "from viewcomp.rt.gl.context import GLUnavailable\n"
         "try:\n"
         "    render_file(SyntheticCompensation(synthetic_model('pixel', 8, 8)),\n"
         f"                {str(tmp_path / 'in.png')!r}, {str(tmp_path / 'out.png')!r},\n"

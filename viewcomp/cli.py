@@ -55,21 +55,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _known_errors() -> tuple[type[BaseException], ...]:
     """Errors that carry a message for the user (cause and fix): no traceback for these."""
-    from viewcomp.calib.bundle import BundleError
     from viewcomp.calib.errors import FitError
-    from viewcomp.calib.geometry import GeometryError
-    from viewcomp.calib.imageio import CaptureError
-    from viewcomp.calib.rig import RigError
-    from viewcomp.calib.simulator import SimulatorError
+    from viewcomp.calib.io.bundle import BundleError
+    from viewcomp.calib.io.imageio import CaptureError
+    from viewcomp.calib.sim.simulator import SimulatorError
+    from viewcomp.calib.world.geometry import GeometryError
+    from viewcomp.calib.world.rig import RigError
 
     errors: list[type[BaseException]] = [
         BundleError, FitError, GeometryError, CaptureError, RigError, SimulatorError,
     ]  # fmt: skip
     try:
-        from viewcomp.rt.context import GLUnavailable
-        from viewcomp.rt.pipeline import ImageError
-        from viewcomp.rt.tracks import TrackError
-        from viewcomp.rt.video import VideoError
+        from viewcomp.rt.gl.context import GLUnavailable
+        from viewcomp.rt.media.video import VideoError
+        from viewcomp.rt.render.pipeline import ImageError
+        from viewcomp.rt.render.tracks import TrackError
 
         errors += [GLUnavailable, ImageError, TrackError, VideoError]
     except ImportError:  # the run-time part is optional for calibration-only installs

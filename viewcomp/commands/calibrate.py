@@ -33,9 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.calib.calibrate import calibrate
-    from viewcomp.calib.capture import read_capture_set
-    from viewcomp.calib.pixel import DEFAULT_SMOOTH_PX
+    from viewcomp.calib.fit.calibrate import calibrate
+    from viewcomp.calib.fit.pixel import DEFAULT_SMOOTH_PX
+    from viewcomp.calib.io.captureset import read_capture_set
     from viewcomp.commands._common import Log
 
     log = Log()

@@ -11,12 +11,12 @@ from typing import TYPE_CHECKING
 from viewcomp.cli import UsageError
 
 if TYPE_CHECKING:
-    from viewcomp.calib.rig import Rig
-    from viewcomp.rt.devices import Camera, Projector, SimulatedRig
+    from viewcomp.calib.hw.devices import Camera, Projector, SimulatedRig
+    from viewcomp.calib.world.rig import Rig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from viewcomp.calib.simulator import GLOSS_PRESETS, SCREEN_COLOURS
+    from viewcomp.calib.sim.simulator import GLOSS_PRESETS, SCREEN_COLOURS
 
     p = sub.add_parser(
         "capture",
@@ -95,15 +95,15 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
     if not args.simulate and (args.camera is None or args.monitor is None):
         raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
-    from viewcomp.calib.rig import load_rig
-    from viewcomp.rt.capture import console_prompt, run_capture
+    from viewcomp.calib.hw.procedure import console_prompt, run_capture
+    from viewcomp.calib.world.rig import load_rig
 
     template = load_rig(args.rig) if args.rig else None
     response = args.response
     if response is None and template is None and not args.simulate:
         response = "estimate"
     if response is not None and response != "estimate":
-        from viewcomp.calib.response import parse_response
+        from viewcomp.calib.world.response import parse_response
 
         try:
             parse_response(response)
@@ -157,11 +157,15 @@ def _simulated(
     write (the simulation's geometry, without the lens)."""
     from dataclasses import replace
 
-    from viewcomp.calib.simcamera import camera_simulator, scaled_camera_rig, written_rig
-    from viewcomp.calib.simulate import simulation_rig
-    from viewcomp.calib.simulator import SCREEN_COLOURS, make_screen, white_screen
+    from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
+    from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
+    from viewcomp.calib.sim.simulator import (
+        SCREEN_COLOURS,
+        make_screen,
+        simulation_rig,
+        white_screen,
+    )
     from viewcomp.commands._common import parse_rgb
-    from viewcomp.rt.devices import SimulatedRig as _SimulatedRig
 
     rig = template or simulation_rig()
     if size is not None:
@@ -179,7 +183,8 @@ def _hardware(
     args: argparse.Namespace, parse_size: Callable[[str], tuple[int, int]]
 ) -> tuple[Projector, Camera]:
     """The glfw projector on --monitor and the OpenCV camera --camera."""
-    from viewcomp.rt.devices import GlfwProjector, OpenCVCamera
+    from viewcomp.calib.hw.devices import OpenCVCamera
+    from viewcomp.rt.play.projector import GlfwProjector
 
     cam_size = parse_size(args.camera_size) if args.camera_size else None
     camera = OpenCVCamera(args.camera, size=cam_size, exposure=args.exposure)
@@ -192,7 +197,7 @@ def _hardware(
 
 
 def _list_monitors() -> int:
-    from viewcomp.rt.devices import list_monitors
+    from viewcomp.rt.play.projector import list_monitors
 
     mons = list_monitors()
     if not mons:

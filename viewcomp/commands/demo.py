@@ -30,14 +30,14 @@ def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
 
-    from viewcomp.calib.calibrate import Calibration, calibrate
-    from viewcomp.calib.capture import read_capture_set
-    from viewcomp.calib.compensation import Compensation
-    from viewcomp.calib.imageio import write_png
-    from viewcomp.calib.metrics import delta_e2000
-    from viewcomp.calib.simulate import simulate_capture_set, simulation_rig
-    from viewcomp.calib.simulator import Simulator, make_screen, white_screen
-    from viewcomp.calib.testimages import natural_images
+    from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.eval.metrics import delta_e2000
+    from viewcomp.calib.eval.testimages import natural_images
+    from viewcomp.calib.fit.calibrate import Calibration, calibrate
+    from viewcomp.calib.io.captureset import read_capture_set
+    from viewcomp.calib.io.imageio import write_png
+    from viewcomp.calib.sim.simulate import simulate_capture_set
+    from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
     from viewcomp.commands._common import Log
 
     log = Log()
@@ -99,11 +99,11 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     """Compensate a clip with the shader for a walking viewer; write what the viewer sees."""
     import numpy as np
 
-    from viewcomp.calib.compensation import Compensation
-    from viewcomp.calib.simulator import white_screen
-    from viewcomp.rt.context import GLUnavailable
-    from viewcomp.rt.pipeline import render_file
-    from viewcomp.rt.tracks import load_angle_track
+    from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.sim.simulator import white_screen
+    from viewcomp.rt.gl.context import GLUnavailable
+    from viewcomp.rt.render.pipeline import render_file
+    from viewcomp.rt.render.tracks import load_angle_track
 
     clip, track_csv = out / "clip.mp4", out / "walk.csv"
     _write_clip(clip, list(images.values()), seconds=4.0, rate=25)

@@ -31,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.calib.evaluate import run as run_eval
+    from viewcomp.calib.eval.run import run as run_eval
     from viewcomp.commands._common import Log, parse_size
 
     log = Log(args.quiet)

@@ -43,10 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.calib.calibrate import Calibration
-    from viewcomp.calib.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.cli import UsageError
-    from viewcomp.rt.mpv import ExportError, export_mpv_shader, read_image, write_text_atomic
+    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, read_image, write_text_atomic
 
     if (args.alpha is None) != (args.beta is None):
         raise UsageError("give both --alpha and --beta, or neither")

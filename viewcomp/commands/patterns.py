@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.calib.patterns import write_patterns
+    from viewcomp.calib.io.patterns import write_patterns
 
     w, h = parse_size(args.size)
     paths = write_patterns(args.out_dir, w, h)

@@ -74,8 +74,8 @@ def _stdin_fd() -> int | None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.cli import UsageError
-    from viewcomp.rt.live import InputError, check_angle, check_eye, parse_host_port
-    from viewcomp.rt.player import Player, PlayerError, PlayerOptions, list_monitors
+    from viewcomp.rt.play.live import InputError, check_angle, check_eye, parse_host_port
+    from viewcomp.rt.play.player import Player, PlayerError, PlayerOptions, list_monitors
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="viewcomp play: %(message)s")  # fmt: skip
@@ -92,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
             angle = check_angle(args.angle)
         except InputError as exc:
             raise UsageError(str(exc)) from None
-        from viewcomp.calib.calibrate import Calibration
-        from viewcomp.calib.tonemap import DEFAULT_LAMBDA
+        from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+        from viewcomp.calib.fit.calibrate import Calibration
 
         cal = Calibration.load(args.calib)
         options = PlayerOptions(

@@ -49,12 +49,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.calib.calibrate import Calibration
-    from viewcomp.calib.compensation import Compensation
-    from viewcomp.calib.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.cli import UsageError
-    from viewcomp.rt.pipeline import is_image, render_file
-    from viewcomp.rt.tracks import constant_eye, load_angle_track
+    from viewcomp.rt.render.pipeline import is_image, render_file
+    from viewcomp.rt.render.tracks import constant_eye, load_angle_track
 
     cal = Calibration.load(args.calib)
     v = cal.rig.viewer

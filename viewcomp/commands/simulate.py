@@ -8,7 +8,7 @@ from viewcomp.commands._common import parse_rgb, parse_size
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from viewcomp.calib.simulator import GLOSS_PRESETS, SCREEN_COLOURS
+    from viewcomp.calib.sim.simulator import GLOSS_PRESETS, SCREEN_COLOURS
 
     p = sub.add_parser(
         "simulate",
@@ -45,8 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from viewcomp.calib.simulate import simulate_capture_set, simulation_rig
-    from viewcomp.calib.simulator import SCREEN_COLOURS
+    from viewcomp.calib.sim.simulate import simulate_capture_set
+    from viewcomp.calib.sim.simulator import SCREEN_COLOURS, simulation_rig
 
     screen = args.screen if args.screen in SCREEN_COLOURS else parse_rgb(args.screen)
     rig = simulation_rig()
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         w, h = parse_size(args.size)
         rig = replace(rig, projector=replace(rig.projector, resolution=(w, h)))
         if args.space == "camera":  # keep the camera's pixels per projector pixel
-            from viewcomp.calib.simcamera import scaled_camera_rig
+            from viewcomp.calib.sim.simcamera import scaled_camera_rig
 
             rig = scaled_camera_rig(rig, (w, h))
     paths = simulate_capture_set(

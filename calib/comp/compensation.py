@@ -1,0 +1,225 @@
+"""The CPU side of compensating frames: what the per-pixel formula needs for each frame.
+
+Both backends (numpy reference, GLSL shader), stills and video, go through one object:
+
+    comp = Compensation(calibration, method="pixel")
+    p = comp(thumbnail, eye, t)       # model, alpha, beta for this frame
+    out = reference.compensate(p.model, frame, eye, p.alpha, p.beta)   # or the shader
+
+For ``pixel`` the model is fixed and only the tone map (Eq. 22 on the thumbnail) changes per
+frame. For ``paper`` the model itself depends on the eye (the predicted calibration images,
+Eq. 10) and on the content (the feedback of Eq. 25, with mean(I_c) taken over the
+thumbnail); models are cached per (eye, gains) so an unchanged frame costs nothing.
+With ``tau`` set, (alpha, beta) are smoothed over time so brightness does not flicker.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from viewcomp.calib.comp.tonemap import (
+    DEFAULT_BETA_WEIGHT,
+    DEFAULT_LAMBDA,
+    ToneMap,
+    ToneSmoother,
+    choose_tone_map,
+)
+from viewcomp.calib.io.patterns import GRAY_LEVEL
+from viewcomp.calib.model.reference import RuntimeModel, compensate, lobe_change, white_response
+
+if TYPE_CHECKING:
+    from viewcomp.calib.fit.calibrate import Calibration
+
+THUMB_SIDE = 64
+_CACHE = 64
+
+
+def thumbnail(frame: np.ndarray, max_side: int = THUMB_SIDE) -> np.ndarray:
+    """A small (h, w, 3) uint8 thumbnail of an RGB frame, longest side <= ``max_side``.
+
+    Area-averaged (cv2.INTER_AREA); the tone map's statistics come from it.
+    """
+    h, w = frame.shape[:2]
+    s = min(1.0, max_side / max(h, w))
+    size = (max(1, round(w * s)), max(1, round(h * s)))
+    return cv2.resize(frame, size, interpolation=cv2.INTER_AREA)
+
+
+def sample_grid(shape: tuple[int, int], small: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column indices of the full grid nearest to each thumbnail pixel's centre."""
+    (h, w), (sh, sw) = shape, small
+    rows = np.clip(np.rint((np.arange(sh) + 0.5) * h / sh - 0.5), 0, h - 1).astype(int)
+    cols = np.clip(np.rint((np.arange(sw) + 0.5) * w / sw - 0.5), 0, w - 1).astype(int)
+    return rows, cols
+
+
+def _sample_model(model: RuntimeModel, rows: np.ndarray, cols: np.ndarray) -> RuntimeModel:
+    from dataclasses import replace
+
+    def sub(a: np.ndarray | None, ndim: int) -> np.ndarray | None:
+        return a if a is None or a.ndim < ndim else a[rows][:, cols]
+
+    return replace(
+        model,
+        refl=model.refl[rows][:, cols],
+        pos=model.pos[rows][:, cols],
+        Ww=sub(model.Ww, 4),
+        Wc=sub(model.Wc, 4),
+        Aw=sub(model.Aw, 3),
+        Ac=sub(model.Ac, 3),
+    )
+
+
+@dataclass(frozen=True)
+class FrameParams:
+    """What one frame needs: the runtime model and the tone map (smoothed if asked)."""
+
+    model: RuntimeModel
+    alpha: float
+    beta: float
+    tone: ToneMap
+    gains: np.ndarray | None = None
+
+
+class Compensation:
+    """Per-frame parameters for one calibration and one method.
+
+    Args:
+        cal: the calibration (both methods).
+        method: "pixel" or "paper".
+        lam: the tone map's lambda (Eq. 22).
+        beta_weight: mu, the black-lift penalty (per-pixel method only; the paper's method
+            uses Eq. 22 exactly, mu = 0). None: ``DEFAULT_BETA_WEIGHT``.
+        tau: time constant (s) of the tone map's smoothing over video frames; None: none.
+        feedback: iterations of the paper's Eq. 25 feedback for a still (the paper: 3); for
+            video frames (called with a time ``t``) one iteration per frame, carried over.
+    """
+
+    def __init__(
+        self,
+        cal: Calibration,
+        method: str = "pixel",
+        lam: float = DEFAULT_LAMBDA,
+        beta_weight: float | None = None,
+        tau: float | None = None,
+        feedback: int = 3,
+    ) -> None:
+        if method not in ("pixel", "paper"):
+            raise ValueError(f"method must be 'pixel' or 'paper', got {method!r}")
+        self.cal = cal
+        self.method = method
+        self.lam = float(lam)
+        self.mu = DEFAULT_BETA_WEIGHT if beta_weight is None else float(beta_weight)
+        self.feedback = int(feedback)
+        self.smoother = ToneSmoother(tau) if tau else None
+        self._pixel_model = cal.pixel.runtime_model() if method == "pixel" else None
+        self._small: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, RuntimeModel]] = {}
+        self._paper: OrderedDict[tuple, RuntimeModel] = OrderedDict()
+        self._gains: np.ndarray | None = None  # the paper's feedback, carried between frames
+        self._view: tuple[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the projector grid."""
+        return self.cal.shape
+
+    def base_model(self) -> RuntimeModel:
+        """A model of the right method and grid (the paper's: at the calibration camera)."""
+        if self._pixel_model is not None:
+            return self._pixel_model
+        return self.paper_model(self.cal.paper.geometry.camera, np.ones(3))
+
+    def paper_model(self, eye: np.ndarray, gains: np.ndarray) -> RuntimeModel:
+        """The paper's runtime model at ``eye`` with feedback gains i_c/i_s, cached."""
+        key = (*np.round(np.asarray(eye, float), 5), *np.round(gains, 3))
+        m = self._paper.get(key)
+        if m is None:
+            m = self.cal.paper.runtime_model(np.asarray(eye, float), np.round(gains, 3))
+            self._paper[key] = m
+            if len(self._paper) > _CACHE:
+                self._paper.popitem(last=False)
+        else:
+            self._paper.move_to_end(key)
+        return m
+
+    def _small_model(self, model: RuntimeModel, shape: tuple[int, int]) -> RuntimeModel:
+        if model.method == "paper":
+            rows, cols = self._grid(shape)
+            return _sample_model(model, rows, cols)
+        hit = self._small.get(shape)
+        if hit is None:
+            rows, cols = self._grid(shape)
+            hit = (rows, cols, _sample_model(model, rows, cols))
+            self._small[shape] = hit
+        return hit[2]
+
+    def _grid(self, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        return sample_grid(self.shape, shape)
+
+    def tone_map(self, model: RuntimeModel, thumb: np.ndarray, eye: np.ndarray) -> ToneMap:
+        """Eq. 22 on the thumbnail for this model and eye (unsmoothed)."""
+        small = self._small_model(model, thumb.shape[:2])
+        cw = white_response(small, thumb).astype(np.float64)
+        if model.method == "paper":
+            u = cw @ model.Wc_inv.T.astype(np.float64)
+            v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
+            return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
+        m_inv, v, c = self._view_terms(small, eye)
+        u = np.einsum("hwij,hwj->hwi", m_inv, cw)
+        scale = max(float(cw.mean()), 1e-4)
+        return choose_tone_map(u, v, c, 0.0, 1.0, self.lam, beta_weight=self.mu, beta_scale=scale)
+
+    def _view_terms(
+        self, small: RuntimeModel, eye: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per thumbnail pixel: M^-1 at the eye, M^-1 1 and -M^-1 Ac (float64), for the
+        last (grid, eye) asked for: a held eye costs the inversion once."""
+        key = (small.shape, tuple(np.asarray(eye, np.float64).tolist()))
+        if self._view is None or self._view[0] != key:
+            ds = lobe_change(small, eye).astype(np.float64)
+            m_inv = np.linalg.inv(small.Wc + ds[..., :, None] * small.Ww)
+            v = m_inv.sum(axis=-1)
+            c = -np.einsum("hwij,hwj->hwi", m_inv, small.Ac)
+            self._view = (key, (m_inv, v, c))
+        return self._view[1]
+
+    def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> FrameParams:
+        """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye, the time (s)."""
+        eye = np.asarray(eye, np.float64)
+        gains = None
+        if self.method == "pixel":
+            model = self._pixel_model
+            tone = self.tone_map(model, thumb, eye)
+        else:
+            # Stills: the paper's three feedback iterations from i_c = i_s. Video (t given):
+            # the iteration carries over from frame to frame, one step per frame, starting
+            # from the previous frame's gains - the same fixed point, spread over time.
+            video = t is not None and self._gains is not None
+            gains = self._gains if video else np.ones(3)
+            model = self.paper_model(eye, gains)
+            tone = self.tone_map(model, thumb, eye)
+            for _ in range(1 if video else self.feedback):
+                small = self._small_model(model, thumb.shape[:2])
+                out = compensate(small, thumb, eye, tone.alpha, tone.beta)
+                gains = out.reshape(-1, 3).mean(axis=0) / GRAY_LEVEL
+                model = self.paper_model(eye, gains)
+                tone = self.tone_map(model, thumb, eye)
+            if t is not None:
+                self._gains = gains
+        alpha, beta = tone.alpha, tone.beta
+        if self.smoother is not None and t is not None:
+            alpha, beta = self.smoother.update(t, alpha, beta)
+        return FrameParams(model, alpha, beta, tone, gains)
+
+    def compensate_image(
+        self, image: np.ndarray, eye: np.ndarray, identity: bool = False
+    ) -> tuple[np.ndarray, FrameParams]:
+        """The numpy reference end to end for one image already on the projector grid."""
+        p = self(thumbnail(image), eye)
+        out = compensate(p.model, image, eye, p.alpha, p.beta, identity=identity)
+        return out, p

@@ -1,0 +1,140 @@
+"""Calibration patterns to project: Table 1 of the paper, a chessboard and Gray code.
+
+All patterns are 8-bit encoded RGB images (h, w, 3) uint8, 0..255, at the projector's
+resolution: exactly the values the projector is sent. Pixel (u, v) is array ``[v, u]``;
+pixel centres sit at integer coordinates.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from viewcomp.calib.io.imageio import write_png
+
+# The gray pattern U's level in every channel (Table 1); Eq. 25's feedback divides by it.
+GRAY_LEVEL = 110.0
+
+TABLE1_COLOURS: dict[str, tuple[int, int, int]] = {
+    "red": (130, 110, 110),
+    "green": (110, 130, 110),
+    "blue": (110, 110, 130),
+    "gray": (int(GRAY_LEVEL),) * 3,
+}
+
+
+def _check_size(w: int, h: int, min_w: int = 1, min_h: int = 1) -> None:
+    if not (isinstance(w, int | np.integer) and isinstance(h, int | np.integer)):
+        raise ValueError(f"pattern size must be integers, got {w!r}x{h!r}")
+    if w < min_w or h < min_h:
+        raise ValueError(f"pattern size must be integers of at least {min_w}x{min_h}, got {w}x{h}")
+
+
+def ramp_levels(w: int) -> np.ndarray:
+    """The ramp's level per column, (w,) uint8: I(u) = round(255 u / (w - 1)), u = 0..w-1.
+
+    Rounds halves up, in exact integer arithmetic (floor((510 u + (w - 1)) / (2 (w - 1))));
+    for w = 640 no column is a tie, so this equals numpy's round-half-to-even.
+    """
+    _check_size(w, 1, min_w=2)
+    u = np.arange(w, dtype=np.int64)
+    return ((510 * u + (w - 1)) // (2 * (w - 1))).astype(np.uint8)  # 0..255
+
+
+def table1_patterns(w: int, h: int) -> dict[str, np.ndarray]:
+    """Table 1 patterns, each (h, w, 3) uint8 encoded: red (130,110,110), green (110,130,110),
+    blue (110,110,130), gray U (110,110,110), ramp S (every row :func:`ramp_levels` in all
+    three channels) and black (0,0,0)."""
+    _check_size(w, h, min_w=2)
+    out = {
+        name: np.broadcast_to(np.array(rgb, np.uint8), (h, w, 3)).copy()
+        for name, rgb in TABLE1_COLOURS.items()
+    }
+    levels = ramp_levels(w)
+    out["ramp"] = np.broadcast_to(levels[None, :, None], (h, w, 3)).copy()
+    out["black"] = np.zeros((h, w, 3), np.uint8)
+    return out
+
+
+def chessboard(w: int, h: int, squares: tuple[int, int] = (9, 6)) -> tuple[np.ndarray, np.ndarray]:
+    """A black-and-white chessboard centred on a white margin, for cv2.findChessboardCorners.
+
+    ``squares`` is the number of squares (columns, rows); the board has
+    (columns - 1) x (rows - 1) inner corners, which is the ``patternSize`` to give OpenCV.
+    The square side is floor(min(w / (columns + 2), h / (rows + 2))) pixels, so the white
+    margin is at least one square wide. The top-left square is black.
+
+    Returns the image (h, w, 3) uint8 (0 and 255) and the inner corners (N, 2) float64 in
+    projector pixels (u, v), row by row from the top-left, N = (columns - 1) (rows - 1). A
+    corner lies between pixels, e.g. at u = x0 + i s - 0.5.
+    """
+    cols, rows = squares
+    if cols < 3 or rows < 3:
+        raise ValueError(f"a chessboard needs at least 3x3 squares, got {cols}x{rows}")
+    _check_size(w, h)
+    side = min(w // (cols + 2), h // (rows + 2))
+    if side < 4:
+        raise ValueError(
+            f"{w}x{h} is too small for a {cols}x{rows} chessboard (squares would be {side} px)"
+        )
+    x0 = (w - cols * side) // 2
+    y0 = (h - rows * side) // 2
+    img = np.full((h, w), 255, np.uint8)
+    for j in range(rows):
+        for i in range(cols):
+            if (i + j) % 2 == 0:
+                img[y0 + j * side : y0 + (j + 1) * side, x0 + i * side : x0 + (i + 1) * side] = 0
+    ii, jj = np.meshgrid(np.arange(1, cols), np.arange(1, rows))
+    corners = np.stack([x0 + ii.ravel() * side - 0.5, y0 + jj.ravel() * side - 0.5], axis=1).astype(
+        np.float64
+    )
+    return np.repeat(img[:, :, None], 3, axis=2), corners
+
+
+def graycode_patterns(w: int, h: int) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """OpenCV's Gray-code structured-light patterns for a w x h projector.
+
+    Returns (patterns, white, black): the list from
+    ``cv2.structured_light.GrayCodePattern_create(w, h).generate()`` in OpenCV's order (each
+    bit plane followed by its inverse, columns then rows), and the all-white / all-black pair
+    used for the shadow masks when decoding. All (h, w, 3) uint8, 0 or 255.
+    """
+    _check_size(w, h)
+    gen = cv2.structured_light.GrayCodePattern_create(w, h)
+    ok, planes = gen.generate()
+    if not ok:
+        raise RuntimeError(f"OpenCV could not generate Gray-code patterns for {w}x{h}")
+    black, white = gen.getImagesForShadowMasks(None, None)  # OpenCV order: (black, white)
+
+    def rgb(p: np.ndarray) -> np.ndarray:
+        return np.repeat(np.asarray(p, np.uint8).reshape(h, w)[:, :, None], 3, axis=2)
+
+    return [rgb(p) for p in planes], rgb(white), rgb(black)
+
+
+def write_patterns(out_dir: str | Path, w: int, h: int) -> list[Path]:
+    """Write every pattern to project as 8-bit RGB PNGs in ``out_dir`` (created if needed).
+
+    Files: red.png green.png blue.png gray.png ramp.png black.png (Table 1), chessboard.png
+    (:func:`chessboard` with the default squares), graycode_00.png ... (:func:`graycode_patterns`,
+    two digits or more) and graycode_white.png graycode_black.png. Each is written atomically.
+    Returns the paths in that order.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    images: dict[str, np.ndarray] = dict(table1_patterns(w, h))
+    images["chessboard"] = chessboard(w, h)[0]
+    planes, white, black = graycode_patterns(w, h)
+    digits = max(2, len(str(len(planes) - 1)))
+    for k, p in enumerate(planes):
+        images[f"graycode_{k:0{digits}d}"] = p
+    images["graycode_white"] = white
+    images["graycode_black"] = black
+    paths = []
+    for name, img in images.items():
+        path = out / f"{name}.png"
+        write_png(path, img)
+        paths.append(path)
+    return paths

@@ -1,0 +1,9 @@
+"""The physical simulator of projector, screen and camera; simulated capture sets.
+
+- ``simcamera``: The simulated calibration camera in its own image: what `simulate --space
+  camera` writes.
+- ``simulate``: Simulated capture sets: what `viewcomp simulate` writes (projector or camera
+  space).
+- ``simulator``: A physical simulator of projector, screen and camera (MODEL.md section 5).
+- ``testing``: Small real calibrations for tests and examples (simulated, a second or so).
+"""

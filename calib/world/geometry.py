@@ -1,0 +1,108 @@
+"""Screen geometry on the projector's pixel grid (MODEL.md section 1).
+
+World units are metres; the screen is the plane z = 0 with normal N = (0, 0, 1); +x is the
+audience's right, +y up, +z toward the audience. Every per-pixel array here is (H, W, 3) on
+the projector grid, row 0 at the top of the projector image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viewcomp.calib.world.rig import Device, Rig
+
+NORMAL = np.array([0.0, 0.0, 1.0])
+
+
+class GeometryError(ValueError):
+    """The rig's geometry cannot be used (a pixel misses the screen, a device behind it)."""
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def screen_points(projector: Device) -> np.ndarray:
+    """p(x): where each projector pixel's ray meets the screen plane z = 0.
+
+    Returns:
+        (H, W, 3) float64 points in metres (z = 0).
+
+    Raises:
+        GeometryError: when some pixel's ray does not reach the screen in front of it.
+    """
+    rays = projector.pixel_rays()
+    origin = np.asarray(projector.position, float)
+    dz = rays[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -origin[2] / dz
+    if not np.all(np.isfinite(t)) or np.any(t <= 0):
+        raise GeometryError(
+            "some projector pixels miss the screen plane z = 0: check [projector] position, "
+            "look_at and fov_y in rig.toml (the projector must face the screen)"
+        )
+    pts = origin + t[..., None] * rays
+    pts[..., 2] = 0.0
+    return pts
+
+
+def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:
+    """R(x) = 2 (Y.N) N - Y with Y = normalize(P - p) (Eq. 6). (H, W, 3) unit vectors."""
+    y = _unit(np.asarray(projector_position, float) - pos)
+    r = -y
+    r[..., 2] = y[..., 2]
+    return r
+
+
+def view_vectors(pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    """V(x) = normalize(E - p). (H, W, 3) unit vectors toward the eye."""
+    return _unit(np.asarray(eye, float) - pos)
+
+
+def r_dot_v(refl: np.ndarray, pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    """R.V per pixel, (H, W), in -1..1 (not clamped)."""
+    return np.sum(refl * view_vectors(pos, eye), axis=-1)
+
+
+def irradiance_falloff(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:
+    """cos(incidence) / r^2 per pixel, normalised to 1 at the pixel nearest the axis. (H, W)."""
+    d = np.asarray(projector_position, float) - pos
+    r2 = np.sum(d * d, axis=-1)
+    cos_i = d[..., 2] / np.sqrt(r2)
+    g = cos_i / r2
+    h, w = g.shape
+    return g / g[h // 2, w // 2]
+
+
+@dataclass(frozen=True)
+class ScreenGeometry:
+    """Per-pixel geometry of a rig: surface points, reflection vectors and the camera eye."""
+
+    pos: np.ndarray  # (H, W, 3) metres
+    refl: np.ndarray  # (H, W, 3) unit
+    projector: np.ndarray  # (3,) metres
+    camera: np.ndarray  # (3,) metres
+
+    @classmethod
+    def from_rig(cls, rig: Rig) -> ScreenGeometry:
+        """Compute the geometry from a rig (projector pose and intrinsics, camera position)."""
+        pos = screen_points(rig.projector)
+        proj = np.asarray(rig.projector.position, float)
+        if proj[2] <= 0:
+            raise GeometryError("[projector] position must be in front of the screen (z > 0)")
+        cam = np.asarray(rig.camera.position, float)
+        if cam[2] <= 0:
+            raise GeometryError("[camera] position must be in front of the screen (z > 0)")
+        return cls(pos=pos, refl=reflection_vectors(pos, proj), projector=proj, camera=cam)
+
+    def rv(self, eye: np.ndarray) -> np.ndarray:
+        """R.V for an eye at ``eye``: (H, W)."""
+        return r_dot_v(self.refl, self.pos, eye)
+
+    def downsample(self, step: int) -> ScreenGeometry:
+        """Every ``step``-th pixel in both directions (for fast fits and thumbnails)."""
+        return ScreenGeometry(
+            self.pos[::step, ::step], self.refl[::step, ::step], self.projector, self.camera
+        )

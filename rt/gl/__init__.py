@@ -1,0 +1,7 @@
+"""OpenGL: the headless context and the Compensator that runs the shader.
+
+- ``compensator``: The GL compensator: the formula of docs/RUNTIME.md in a fragment shader,
+  embeddable.
+- ``context``: The headless OpenGL 3.3 context (moderngl standalone, EGL), with one clear error
+  if absent.
+"""

@@ -1,0 +1,735 @@
+"""The GL compensator: the formula of docs/RUNTIME.md in a fragment shader, embeddable.
+
+:class:`Compensator` owns every GL object it uses (program, vertex array, textures, an
+RGBA8 framebuffer) and releases them all in :meth:`Compensator.release` (or on leaving a
+``with`` block). It never scales: frames must be exactly the model's (H, W) grid.
+
+Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
+
+- the frame is read with NEAREST ``textureLod(.., 0)`` at texel centres (llvmpipe runs
+  ``texelFetch`` on 2D textures ~1.5x slower); the LUTs, the maps and the view cache are
+  buffer textures (:class:`viewcomp.rt.gl.context.BufferTexture`) read with ``texelFetch``,
+  ~0.7x the cost of the 2D reads; draws are flushed at once and waited for with the GIL
+  released (:func:`viewcomp.rt.gl.context.finish`), so other threads run meanwhile;
+- the fragment shader reads no uniforms (llvmpipe pays per pixel for each component): what
+  is fixed for this object is compiled in as ``#define`` literals (one program per variant
+  and Compensator, ~0.1-0.3 s at start), what changes per frame is handed over as flat
+  inputs by the vertex shader (:meth:`Compensator._frame_values`);
+- the pixel method's 31 per-pixel maps are float32 (8 RGBA32F texels per pixel) by default,
+  side by side in one buffer so that a pixel's texels are neighbours in memory (half the
+  cost of 8 separate textures on llvmpipe). ``precision="packed"`` stores them as 20-bit
+  fixed point (:func:`pack_pixel_maps`) in 5 RGBA32UI texels (80 instead of 128 bytes),
+  error at most half a step = (max - min) / (2^20 - 1) per value. That is not the default:
+  the tone map puts some pixel-channels exactly on the black bound, where the square-root
+  sampled inverse LUT has an unbounded slope, so a change of y by 1e-7 moves those by 2-4
+  levels (invisible, the projector's response is flat there, but beyond "<= 3 levels
+  anywhere" of docs/RUNTIME.md); everything else stays within one level;
+- the view cache: for a held eye the pixel method's solve is linear in the tone map, so
+  G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1 and d = M^-1 Ac are rendered once per eye (5 texels
+  per pixel, in ``view_steps`` bands, each band copied into a buffer texture) and each draw
+  reads those instead of solving (~0.65x the time at 1080p). Only a moving eye pays the
+  full solve every draw.
+
+Typical use::
+
+    with Compensator(model) as comp:
+        comp.set_angle(60.0, distance=0.5, height=0.035)
+        comp.set_tone(alpha, beta)
+        out = comp.render(frame)              # (H, W, 3) uint8 -> (H, W, 3) uint8
+
+Threading: call it from the thread whose GL context is current (the thread that made it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any, Literal
+
+import moderngl
+import numpy as np
+
+from viewcomp.calib.model.reference import RuntimeModel, lut_forward
+from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.rt.gl.context import (
+    BufferTexture,
+    ProcAddress,
+    create_context,
+    finish,
+    flush,
+    set_sampler_units,
+)
+from viewcomp.rt.media.frames import Planes, yuv_coefficients
+from viewcomp.shaders import build_program
+
+_METHODS = {"identity": 0, "pixel": 1, "paper": 2}
+_CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
+_VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
+_PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached"}
+_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view".split()
+Precision = Literal["float32", "packed"]
+
+# The 32 values per pixel of the packed maps, in shader order (compensate.frag.glsl).
+PACKED_LAYOUT = (
+    [("Ww", i, j) for i in range(3) for j in range(3)]
+    + [("Aw", i, None) for i in range(3)]
+    + [("Wc", i, j) for i in range(3) for j in range(3)]
+    + [("Ac", i, None) for i in range(3)]
+    + [("refl", i, None) for i in range(3)]
+    + [("pos", i, None) for i in range(3)]
+    + [("lobe", None, None), ("zero", None, None)]
+)
+_BITS = 20  # per packed value: 16 high bits in texels 0..3 of a pixel, the low 4 in texel 4
+_Q = float((1 << _BITS) - 1)
+
+
+def camera_lobe(refl: np.ndarray, pos: np.ndarray, cam_eye: np.ndarray, gamma: float) -> np.ndarray:
+    """max(R . normalize(E_cam - p), 0)^gamma, (H, W) float32, as reference.lobe_change does."""
+    vc = cam_eye.astype(np.float32) - pos
+    vc /= np.linalg.norm(vc, axis=-1, keepdims=True)
+    return (np.maximum(np.sum(refl * vc, axis=-1), 0.0) ** np.float32(gamma)).astype(np.float32)
+
+
+def _inv_pairs(inv_lut: np.ndarray, n: int) -> np.ndarray:
+    """(3, N, 2) float32: [c, i] = (inv_lut[i, c], inv_lut[i + 1, c]) (last pair repeats)."""
+    lut = _f32(inv_lut, (n, 3), "inv_lut")
+    out = np.empty((3, n, 2), np.float32)
+    out[:, :, 0] = lut.T
+    out[:, :-1, 1] = lut[1:].T
+    out[:, -1, 1] = lut[-1]
+    return out
+
+
+def _f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(np.asarray(a, dtype=np.float32))
+    if arr.shape != shape:
+        raise ValueError(f"{name} must be {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} holds NaN or infinite values")
+    return arr
+
+
+def _groups(model: RuntimeModel, cam_lobe: np.ndarray) -> list[np.ndarray]:
+    """The packed layout's source arrays as (H*W, c) views, in ``PACKED_LAYOUT`` order."""
+    n = model.shape[0] * model.shape[1]
+    return [
+        model.Ww.reshape(n, 9),  # type: ignore[union-attr]
+        model.Aw.reshape(n, 3),  # type: ignore[union-attr]
+        model.Wc.reshape(n, 9),  # type: ignore[union-attr]
+        model.Ac.reshape(n, 3),  # type: ignore[union-attr]
+        model.refl.reshape(n, 3),
+        model.pos.reshape(n, 3),
+        cam_lobe.reshape(n, 1),
+    ]  # 31 values; value 31 stays 0
+
+
+def _columns(model: RuntimeModel, cam_lobe: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
+    """(first value index, (c, H*W) contiguous copy) per group: fast reductions per value."""
+    k = 0
+    for g in _groups(model, cam_lobe):
+        yield k, np.ascontiguousarray(g.T)
+        k += g.shape[1]
+
+
+def _pixel_arrays(model: RuntimeModel) -> tuple[RuntimeModel, np.ndarray]:
+    """The pixel method's arrays checked (shape, finite, float32) and the camera's lobe."""
+    from dataclasses import replace
+
+    h, w = model.shape
+    checked = {}
+    for key in ("Ww", "Wc"):
+        if getattr(model, key) is None:
+            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
+        checked[key] = _f32(getattr(model, key), (h, w, 3, 3), key)
+    for key in ("Aw", "Ac"):
+        if getattr(model, key) is None:
+            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
+        checked[key] = _f32(getattr(model, key), (h, w, 3), key)
+    checked["refl"] = _f32(model.refl, (h, w, 3), "refl")
+    checked["pos"] = _f32(model.pos, (h, w, 3), "pos")
+    m = replace(model, **checked)
+    lobe = camera_lobe(m.refl, m.pos, _f32(model.cam_eye, (3,), "cam_eye"), model.gamma)
+    if not np.all(np.isfinite(lobe)):
+        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and gamma")
+    return m, lobe
+
+
+def field_ranges(model: RuntimeModel, cam_lobe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) over the grid of each of the 32 packed values, float32 (32,) each."""
+    lo = np.zeros(32, np.float32)
+    hi = np.zeros(32, np.float32)
+    for k, cols in _columns(model, cam_lobe):
+        c = cols.shape[0]
+        lo[k : k + c] = cols.min(axis=1)
+        hi[k : k + c] = cols.max(axis=1)
+    return lo, hi
+
+
+def pack_pixel_maps(
+    model: RuntimeModel,
+    cam_lobe: np.ndarray,
+    ranges: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The pixel method's per-pixel values as 20-bit fixed point in 5 RGBA32UI images.
+
+    Value k (``PACKED_LAYOUT``) is ``q * scale[k] + offset[k]`` with q = round((v - min) /
+    scale) in 0..2^20-1, scale = (max - min) / (2^20 - 1) over the grid. Images 0..3
+    (H, W, 4) uint32 hold the top 16 bits of q: value 8t + c in the low and 8t + 4 + c in the
+    high half of channel c of image t; image 4 holds the low 4 bits: value 8t + 4h + c in
+    bits 4 (2t + h) .. +3 of its channel c.
+
+    Returns:
+        (5 images, scale (8, 4) float32, offset (8, 4) float32).
+    """
+    h, w = model.shape
+    lo, hi = field_ranges(model, cam_lobe) if ranges is None else ranges
+    scale = ((hi.astype(np.float64) - lo) / _Q).astype(np.float32)
+    images = [np.zeros((h * w, 4), np.uint32) for _ in range(5)]
+    for k0, cols in _columns(model, cam_lobe):
+        for j in range(cols.shape[0]):
+            k = k0 + j
+            if scale[k] > 0:
+                v = cols[j] - lo[k]
+                v *= np.float32(1.0 / float(scale[k]))
+                np.rint(v, out=v)
+                np.clip(v, 0.0, _Q, out=v)
+                q = v.astype(np.uint32)
+            else:
+                q = np.zeros(h * w, np.uint32)
+            t, half, c = k // 8, (k % 8) // 4, k % 4
+            images[t][:, c] |= (q >> np.uint32(4)) << np.uint32(16 * half)
+            images[4][:, c] |= (q & np.uint32(15)) << np.uint32(4 * (2 * t + half))
+    return [img.reshape(h, w, 4) for img in images], scale.reshape(8, 4), lo.reshape(8, 4)
+
+
+def unpack_pixel_maps(
+    images: list[np.ndarray], scale: np.ndarray, offset: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The values the shader reconstructs from :func:`pack_pixel_maps` (float32; for tests)."""
+    s, o = scale.ravel(), offset.ravel()
+    h, w = images[0].shape[:2]
+    out = {
+        "Ww": np.empty((h, w, 3, 3), np.float32), "Aw": np.empty((h, w, 3), np.float32),
+        "Wc": np.empty((h, w, 3, 3), np.float32), "Ac": np.empty((h, w, 3), np.float32),
+        "refl": np.empty((h, w, 3), np.float32), "pos": np.empty((h, w, 3), np.float32),
+        "lobe": np.empty((h, w), np.float32), "zero": np.empty((h, w), np.float32),
+    }  # fmt: skip
+    for k, (name, i, j) in enumerate(PACKED_LAYOUT):
+        t, half, c = k // 8, (k % 8) // 4, k % 4
+        top = (images[t][..., c] >> np.uint32(16 * half)) & np.uint32(0xFFFF)
+        low = (images[4][..., c] >> np.uint32(4 * (2 * t + half))) & np.uint32(15)
+        q = (top << np.uint32(4)) | low
+        v = q.astype(np.float32) * np.float32(s[k]) + np.float32(o[k])
+        if j is not None:
+            out[name][..., i, j] = v
+        elif i is not None:
+            out[name][..., i] = v
+        else:
+            out[name][...] = v
+    return out
+
+
+def _lit(x: float) -> str:
+    """A float32 value as a GLSL literal that parses back to the same float32."""
+    v = float(np.float32(x))
+    if not math.isfinite(v):
+        raise ValueError(f"cannot compile the non-finite value {x!r} into the shader")
+    text = f"{v:.9g}"
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _vec(values: Any) -> str:
+    vals = [_lit(v) for v in np.asarray(values, np.float64).ravel()]
+    return f"vec{len(vals)}({', '.join(vals)})"
+
+
+class Compensator:
+    """Runs the compensation shader for one :class:`RuntimeModel` on an (H, W) grid.
+
+    Args:
+        model: the runtime model (method ``pixel`` or ``paper``; ``identity`` also works and
+            needs only the LUTs). Per-pixel arrays are uploaded once here.
+        ctx: a moderngl context (>= 3.3) current on this thread; ``None`` creates a
+            standalone EGL one, which this object then owns and releases.
+        precision: the pixel method's per-pixel maps: ``"float32"`` exact copies (default) or
+            ``"packed"`` 20-bit fixed point (faster, near-black caveat above).
+        view_cache: pixel method: once the eye has been the same for ``view_hold`` draws in
+            a row, solve the per-pixel system for that eye once (an extra ~5 draws' work)
+            and draw from that cache (~0.7x the per-frame time on llvmpipe) until the eye
+            moves. False: always solve per draw. Attributes of the same names, settable.
+        view_hold: draws with an unchanged eye before the cache is built (>= 0).
+        view_steps: the cache is built in this many bands of rows, one before each draw
+            (>= 1; 1: at once, the least work; more: no draw takes much longer than others).
+        gl_loader: the GL function loader (name -> address) of the host's windowing
+            library, for the few calls moderngl lacks (buffer textures); default EGL's.
+
+    State defaults: eye = ``model.cam_eye``, alpha = 1, beta = 0, compensation on.
+
+    Raises:
+        ValueError: a model of the wrong shapes or with non-finite values, naming the array.
+        GLUnavailable: ``ctx`` is None and no OpenGL 3.3 context can be made.
+    """
+
+    def __init__(
+        self,
+        model: RuntimeModel,
+        ctx: moderngl.Context | None = None,
+        precision: Precision = "float32",
+        view_cache: bool = True,
+        view_hold: int = 1,
+        view_steps: int = 4,
+        gl_loader: ProcAddress | None = None,
+    ) -> None:
+        if precision not in ("float32", "packed"):
+            raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
+        if not isinstance(model, RuntimeModel):
+            raise ValueError(f"model must be a RuntimeModel, got {type(model).__name__}")
+        if int(view_hold) < 0 or int(view_steps) < 1:
+            raise ValueError(
+                f"need view_hold >= 0 and view_steps >= 1, got {view_hold} and {view_steps}"
+            )
+        self._precision = precision
+        self.view_cache = bool(view_cache)
+        self.view_hold = int(view_hold)
+        self.view_steps = int(view_steps)
+        self._loader = gl_loader
+        self._own_ctx = ctx is None
+        self.ctx: moderngl.Context = create_context() if ctx is None else ctx
+        self._objects: list[Any] = []
+        self._released = False
+        try:
+            self._setup(model)
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
+            self.release()
+            raise
+
+    # ----------------------------------------------------------------- construction
+    def _track(self, obj: Any) -> Any:
+        self._objects.append(obj)
+        return obj
+
+    def _buffer_texture(self, data: np.ndarray | int, fmt: str) -> BufferTexture:
+        """A buffer texture of ``data`` (or of that many bytes, unset), owned by this object."""
+        content = np.ascontiguousarray(data).tobytes() if isinstance(data, np.ndarray) else None
+        reserve = int(data) if content is None else 0
+        return self._track(BufferTexture(self.ctx, content, fmt, reserve, self._loader))
+
+    def _tex(self, size: tuple[int, int], comps: int, dtype: str, data: Any = None) -> Any:
+        tex = self._track(self.ctx.texture(size, comps, data, dtype=dtype, alignment=1))
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # reads at texel centres only
+        tex.repeat_x = tex.repeat_y = True  # never used (centres lie inside); a bit cheaper
+        return tex
+
+    def _setup(self, model: RuntimeModel) -> None:
+        if model.method not in _METHODS:
+            raise ValueError(f"model.method must be one of {sorted(_METHODS)}, got {model.method}")
+        if np.ndim(model.refl) != 3 or np.shape(model.refl)[2] != 3:
+            raise ValueError(f"refl must be (H, W, 3), got {np.shape(model.refl)}")
+        h, w = model.shape
+        self.method: str = model.method
+        self.height, self.width = h, w
+        max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        inv_lut = np.asarray(model.inv_lut)
+        if inv_lut.ndim != 2 or inv_lut.shape[1] != 3:
+            raise ValueError(f"inv_lut must be (N, 3), got {inv_lut.shape}")
+        n_inv = int(inv_lut.shape[0])
+        if max(w, h, n_inv) > max_size:
+            raise ValueError(
+                f"grid {w}x{h} / inverse LUT of {n_inv} entries exceeds GL_MAX_TEXTURE_SIZE "
+                f"{max_size}"
+            )
+        if n_inv < 2:
+            raise ValueError(f"inv_lut needs at least 2 entries, got {n_inv}")
+        self._n_inv = n_inv
+        self._programs: dict[tuple[Any, ...], tuple[Any, Any]] = {}
+        self._input = 0
+        self._color = self._track(self.ctx.renderbuffer((w, h), 4, dtype="f1"))
+        self.fbo = self._track(self.ctx.framebuffer(color_attachments=[self._color]))
+
+        self._rgb = self._tex((w, h), 3, "u1")
+        self._y = self._tex((w, h), 1, "u1")
+        cw, ch = (w + 1) // 2, (h + 1) // 2
+        self._uv = self._tex((cw, ch), 2, "u1")
+        self._uv_host = np.empty((ch, cw, 2), np.uint8)
+        fwd = _f32(model.fwd_lut, (256, 3), "fwd_lut")
+        levels = np.broadcast_to(np.arange(256, dtype=np.float32)[:, None], (256, 3))
+        fwd_rows = np.ascontiguousarray(lut_forward(fwd, levels).T)  # exact at integer levels
+        self._fwd = self._buffer_texture(fwd_rows, "r32f")
+        self._inv = self._buffer_texture(_inv_pairs(inv_lut, n_inv), "rg32f")
+        units: dict[str, Any] = {
+            "u_rgb": self._rgb, "u_y": self._y, "u_uv": self._uv,
+            "u_fwd": self._fwd, "u_inv": self._inv,
+        }  # fmt: skip
+        # Compiled-in constants (#define NAME literal) of every variant of this object.
+        self._consts: dict[str, str | int] = {"GRID_W": w, "GRID_H": h, "N_INV": n_inv}
+        self.packed = False
+        self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
+        self._inv_lo = _f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
+        self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
+        if model.method == "pixel":
+            units.update(self._upload_pixel_maps(model))
+            self._consts["KAPPA"] = _vec(_f32(model.kappa, (3,), "kappa"))
+            if not math.isfinite(float(model.gamma)):
+                raise ValueError(f"gamma must be finite, got {model.gamma}")
+            self._consts["GAMMA"] = _lit(model.gamma)
+            self._consts.update(self._sq_consts())
+        if model.method == "paper":
+            self._Ww = _f32(model.Ww, (3, 3), "Ww").astype(np.float64)
+            if model.Wc_inv is None:
+                raise ValueError("paper method needs model.Wc_inv (3, 3)")
+            self._Wc_inv = _f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+        self._units = [(i, units.get(name)) for i, name in enumerate(_SAMPLERS)]
+        self._view: tuple[Any, Any] | None = None  # (texture, framebuffer), made on first use
+        self._view_eye: tuple[float, ...] | None = None  # the eye the view cache holds
+        self._last_eye: tuple[float, ...] | None = None
+        self._held = 0  # draws in a row with the same eye, after the first
+        self._building: tuple[float, ...] | None = None  # the eye of a cache under way
+        self._band_row = 0  # its next grid row
+        self.last_path = ""  # how the last draw ran: identity, solve, cached or paper
+        self.identity = False
+        self.set_eye(*self._cam_eye)
+        self.set_tone(1.0, 0.0)
+        self._yuv_key: tuple[str, str] = ("bt709", "limited")
+
+    def _inv_scale(self) -> np.ndarray:
+        """(N - 1)^2 / (hi - lo) per channel: the inverse LUT's squared position t2 per unit
+        of value (``lut_inverse_sq`` in the shader: position sqrt(t2), t2 in [0, (N - 1)^2])."""
+        span = np.maximum(self._inv_hi - self._inv_lo, 1e-12)
+        return (self._n_inv - 1) ** 2 / span
+
+    def _sq_consts(self) -> dict[str, str]:
+        """SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI: t2 = clamp(SQ_SCALE y - SQ_OFF, SQ_LO, SQ_HI) is
+        the squared LUT position of the pixel method's y. It equals the reference's clamp of y
+        to [0, 1], then of the position to [0, (N - 1)^2], as one clamp: both are increasing,
+        so the inner bounds map to the outer ones."""
+        s, lo = self._inv_scale(), self._inv_lo
+        top = float((self._n_inv - 1) ** 2)
+        return {
+            "SQ_SCALE": _vec(s), "SQ_OFF": _vec(s * lo),
+            "SQ_LO": _vec(np.clip(-s * lo, 0.0, top)),
+            "SQ_HI": _vec(np.clip(s * (1.0 - lo), 0.0, top)),
+        }  # fmt: skip
+
+    def _view_block(self, n: int) -> tuple[int, int]:
+        """(bx, by): ``n`` texels of a pixel as a bx x by block of the view cache's target.
+
+        One row of ``n`` texels if ``n * W`` fits the driver's GL_MAX_TEXTURE_SIZE, else the
+        fewest rows that fit (3 x 2 for 5 texels at 3840 wide on llvmpipe's 16384).
+        """
+        max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        for by in range(1, n + 1):
+            bx = -(-n // by)
+            if bx * self.width <= max_size and by * self.height <= max_size:
+                return bx, by
+        raise ValueError(
+            f"grid {self.width}x{self.height} too large for the view cache "
+            f"(GL_MAX_TEXTURE_SIZE {max_size}); use view_cache=False"
+        )
+
+    def _interleaved(self, texels: list[np.ndarray], fmt: str) -> BufferTexture:
+        """One buffer texture holding ``texels[k]`` (H, W, 4) of pixel (x, y) at (y W + x) n + k."""
+        h, w, n = self.height, self.width, len(texels)
+        data = np.empty((h, w, n, 4), texels[0].dtype)
+        for k, img in enumerate(texels):
+            data[:, :, k, :] = img
+        self._consts["MAP_N"] = n
+        return self._buffer_texture(data, fmt)
+
+    def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
+        h, w = model.shape
+        m, lobe = _pixel_arrays(model)
+        if self._precision == "packed":
+            images, scale, offset = pack_pixel_maps(m, lobe)
+            maps = self._interleaved(images, "rgba32ui")
+            del images
+            for k in range(8):
+                self._consts[f"Q_SCALE{k}"] = _vec(scale[k])
+                self._consts[f"Q_OFFSET{k}"] = _vec(offset[k])
+            self.packed = True
+            return {"u_maps": maps}
+        texels = []
+        for mat, amb in ((m.Ww, m.Aw), (m.Wc, m.Ac)):
+            for row in range(3):
+                rgba = np.empty((h, w, 4), np.float32)
+                rgba[..., :3] = mat[:, :, row, :]
+                rgba[..., 3] = amb[..., row]
+                texels.append(rgba)
+        rgba = np.zeros((h, w, 4), np.float32)
+        rgba[..., :3] = m.refl
+        texels.append(rgba)
+        rgba = np.empty((h, w, 4), np.float32)
+        rgba[..., :3] = m.pos
+        rgba[..., 3] = lobe
+        texels.append(rgba)
+        return {"u_maps": self._interleaved(texels, "rgba32f")}
+
+    def _program(self, method: int) -> tuple[Any, Any]:
+        """(program, vertex array) of shader ``method`` on the current input, compiled once."""
+        inp = 0 if method == _BUILD_VIEW else self._input
+        yuv = self._yuv_key if inp == 1 else None
+        key = (method, inp, yuv)
+        if key not in self._programs:
+            defines: dict[str, str | int | float] = {
+                **self._consts, "METHOD": method, "INPUT": inp, "PACKED": int(self.packed),
+            }  # fmt: skip
+            if yuv is not None:
+                k = yuv_coefficients(*yuv)  # type: ignore[arg-type]
+                defines["YUV_K"] = f"ivec4({k.cy}, {k.cr_r}, {k.cb_b}, {k.y_off})"
+                defines["YUV_KG"] = f"ivec2({k.cb_g}, {k.cr_g})"
+            prog = self._track(build_program(self.ctx, defines=defines))
+            vao = self._track(self.ctx.vertex_array(prog, []))
+            # Distinct units: sampler types differ (2D and buffer samplers).
+            units = {n: i for i, n in enumerate(_SAMPLERS) if n in prog}
+            set_sampler_units(prog, units, self._loader)
+            self._programs[key] = (prog, vao)
+        return self._programs[key]
+
+    def _frame_values(self) -> bytes:
+        """The per-frame inputs v_frame[4] (vec4 each) of the current variant, as bytes."""
+        out = np.zeros((4, 4), np.float32)
+        if self._identity:
+            pass
+        elif self.method == "pixel":  # shader METHODs 1, 3 and 4 alike
+            out[0, :3] = self.eye
+            out[0, 3] = self.alpha
+            out[1, 0] = self.beta
+        elif self.method == "paper":
+            s = self._inv_scale()
+            a = s[:, None] * (self.alpha * (self._Wc_inv @ self._Ww))
+            c = s * (self.beta * self._Wc_inv.sum(axis=1) - self._inv_lo)
+            out[:3, :3] = a
+            out[:3, 3] = c
+        return out.tobytes()
+
+    def _shader_method(self) -> int:
+        """The shader METHOD for the next draw; advances the view cache when it is due.
+
+        The pixel method runs from the view cache (METHOD 3, ~0.7x the time on llvmpipe)
+        when the eye is the one the cache was built for. The cache is (re)built once the eye
+        has been the same for ``view_hold`` draws in a row (a held viewer, a constant
+        ``--angle``), in ``view_steps`` bands of rows, one band before each draw, so that no
+        single draw takes much longer than the others; until it is complete, and while the
+        eye keeps moving, every draw solves in full (METHOD 1).
+        """
+        if self._identity:
+            return 0
+        if self.method != "pixel":
+            return _METHODS[self.method]
+        eye = tuple(float(v) for v in self.eye)
+        if eye == self._last_eye:
+            self._held += 1
+        else:
+            self._last_eye, self._held = eye, 0
+        if eye == self._view_eye:
+            return _CACHED
+        if self.view_cache and self._held >= self.view_hold and self._build_view_band(eye):
+            return _CACHED
+        return _METHODS["pixel"]
+
+    def _build_view_band(self, eye: tuple[float, ...]) -> bool:
+        """Render the next band of the view cache for ``eye``; True once it is complete."""
+        bx, by = self._view_block(_VIEW_TEXELS)
+        size = (bx * self.width, by * self.height)
+        row_bytes = 16 * size[0]
+        if self._view is None:
+            fbo = self._track(self.ctx.framebuffer(color_attachments=[self._tex(size, 4, "f4")]))
+            view = self._buffer_texture(row_bytes * size[1], "rgba32f")
+            self._view = (view, fbo)
+            self._consts["VIEW_BX"], self._consts["VIEW_BY"] = bx, by
+            self._units[_SAMPLERS.index("u_view")] = (_SAMPLERS.index("u_view"), view)
+        if self._building != eye:  # a new eye: start over (the old bands are stale)
+            self._building, self._band_row = eye, 0
+            self._view_eye = None
+        view, fbo = self._view
+        rows = -(-self.height // max(1, self.view_steps))
+        r0, r1 = self._band_row, min(self.height, self._band_row + rows)
+        band = (0, by * r0, size[0], by * (r1 - r0))
+        fbo.viewport = (0, 0, *size)
+        fbo.scissor = band
+        fbo.use()
+        self._render(_BUILD_VIEW, flip_y=0)
+        fbo.scissor = None
+        # Into the buffer texture the draws read (a copy within the driver, no round trip).
+        fbo.read_into(view.buffer, viewport=band, components=4, dtype="f4",
+                      write_offset=row_bytes * by * r0)  # fmt: skip
+        self._band_row = r1
+        if r1 < self.height:
+            return False
+        self._view_eye, self._building = eye, None
+        return True
+
+    def _render(self, method: int, flip_y: int) -> None:
+        prog, vao = self._program(method)
+        if "u_frame" in prog:  # the linker may keep only the elements a variant reads
+            u = prog["u_frame"]
+            u.write(self._frame_values()[: 16 * max(1, u.array_length)])
+        if "u_flip_y" in prog:
+            prog["u_flip_y"].value = flip_y
+        for unit, tex in self._units:
+            if tex is not None:
+                tex.use(unit)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def _draw(self, framebuffer: Any, viewport: tuple[int, int, int, int], flip_y: int) -> None:
+        method = self._shader_method()  # may render the view cache first
+        self.last_path = _PATHS[method]
+        framebuffer.use()
+        self.ctx.viewport = viewport
+        self._render(method, flip_y)
+
+    # ----------------------------------------------------------------- state
+    @property
+    def identity(self) -> bool:
+        """True: pass the frame through (same upload, shader and read-back), no compensation."""
+        return self._identity
+
+    @identity.setter
+    def identity(self, on: bool) -> None:
+        self._identity = bool(on)
+
+    def set_eye(self, x: float, y: float, z: float) -> None:
+        """Eye position in metres (world frame of MODEL.md)."""
+        eye = np.array([x, y, z], np.float32)
+        if not np.all(np.isfinite(eye)):
+            raise ValueError(f"the eye must be three finite numbers, got {(x, y, z)}")
+        self.eye = eye
+
+    def set_angle(self, deg: float, distance: float, height: float) -> None:
+        """Eye from a viewing angle: E = (d cos t, h, d sin t); degrees and metres."""
+        self.set_eye(*eye_from_angle(deg, distance, height))
+
+    def set_tone(self, alpha: float, beta: float) -> None:
+        """Tone map T = alpha * C_w + beta (Eq. 21), linear camera units."""
+        if not (math.isfinite(alpha) and math.isfinite(beta)):
+            raise ValueError(f"alpha and beta must be finite, got {alpha}, {beta}")
+        self.alpha, self.beta = float(alpha), float(beta)
+
+    def update_model(
+        self,
+        Wc_inv: np.ndarray | None = None,
+        inv_lut: np.ndarray | None = None,
+        inv_lo: np.ndarray | None = None,
+        inv_hi: np.ndarray | None = None,
+    ) -> None:
+        """Per-eye updates (paper method): (W~_c)^-1 (3, 3) and rho_c^-1 (N, 3) on [lo, hi].
+
+        Small uploads into the existing objects; ``inv_lut`` must keep its N entries. The
+        pixel method's LUT domain is compiled in: it takes ``inv_lut`` only.
+        """
+        if self.method == "pixel" and (inv_lo is not None or inv_hi is not None):
+            raise ValueError("the pixel method's inverse LUT domain is fixed: make a new one")
+        if Wc_inv is not None:
+            self._Wc_inv = _f32(Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+        if inv_lut is not None:
+            self._inv.write(_inv_pairs(inv_lut, self._n_inv))
+        if inv_lo is not None:
+            self._inv_lo = _f32(inv_lo, (3,), "inv_lo").astype(np.float64)
+        if inv_hi is not None:
+            self._inv_hi = _f32(inv_hi, (3,), "inv_hi").astype(np.float64)
+
+    # ----------------------------------------------------------------- per frame
+    def upload(self, frame: np.ndarray) -> None:
+        """Upload an RGB frame (H, W, 3) uint8 (levels 0..255) as the next input."""
+        if frame.shape != (self.height, self.width, 3) or frame.dtype != np.uint8:
+            raise ValueError(
+                f"frame must be uint8 {(self.height, self.width, 3)}, got {frame.dtype} "
+                f"{frame.shape} (scale with viewcomp.rt.media.frames.fit_rgb first)"
+            )
+        self._rgb.write(np.ascontiguousarray(frame))
+        self._input = 0
+
+    def upload_planes(self, planes: Planes) -> None:
+        """Upload a yuv420p frame (converted to RGB levels in the shader, see yuv.glsl)."""
+        planes.check()
+        if planes.shape != (self.height, self.width):
+            raise ValueError(
+                f"planes must be {(self.height, self.width)}, got {planes.shape} "
+                "(the video reader fits frames to the grid)"
+            )
+        yuv_coefficients(planes.colorspace, planes.color_range)  # validates both
+        self._y.write(np.ascontiguousarray(planes.y))
+        self._uv_host[..., 0] = planes.u  # interleave: one chroma texture, half the reads
+        self._uv_host[..., 1] = planes.v
+        self._uv.write(self._uv_host)
+        self._yuv_key = (planes.colorspace, planes.color_range)
+        self._input = 1
+
+    def draw(self) -> None:
+        """Run the shader on the last upload into the own framebuffer.
+
+        Returns at once: the draw is flushed to the driver, which renders on its own threads
+        (llvmpipe) while the caller does other work; :meth:`read` waits for it.
+        """
+        self._draw(self.fbo, (0, 0, self.width, self.height), flip_y=0)
+        flush(self.ctx)
+
+    def read(self, out: np.ndarray | None = None) -> np.ndarray:
+        """Read back the last draw as (H, W, 3) uint8 (into ``out`` if given, no copy).
+
+        Waits for the draw with the GIL released (:func:`viewcomp.rt.gl.context.finish`), so
+        other Python threads (decoder, encoder) run meanwhile.
+        """
+        shape = (self.height, self.width, 3)
+        if out is None:
+            out = np.empty(shape, np.uint8)
+        elif out.shape != shape or out.dtype != np.uint8 or not out.flags.c_contiguous:
+            raise ValueError(f"out must be a C-contiguous uint8 array {shape}, got {out.shape}")
+        finish(self.ctx)
+        self.fbo.read_into(out, components=3, alignment=1)
+        return out
+
+    def render(self, frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Compensate one RGB frame (H, W, 3) uint8 -> (H, W, 3) uint8 for the projector."""
+        self.upload(frame)
+        self.draw()
+        return self.read(out)
+
+    def render_planes(
+        self,
+        y: np.ndarray | Planes,
+        u: np.ndarray | None = None,
+        v: np.ndarray | None = None,
+        colorspace: str = "bt709",
+        color_range: str = "limited",
+        out: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Compensate one yuv420p frame (planes, or a :class:`Planes`) -> (H, W, 3) uint8."""
+        planes = y if isinstance(y, Planes) else Planes(y, u, v, colorspace, color_range)  # type: ignore[arg-type]
+        self.upload_planes(planes)
+        self.draw()
+        return self.read(out)
+
+    def render_to(
+        self,
+        framebuffer: moderngl.Framebuffer,
+        origin: tuple[int, int] = (0, 0),
+        flip_y: bool = True,
+    ) -> None:
+        """Draw the last upload into a host-owned framebuffer of the same context.
+
+        Args:
+            framebuffer: e.g. ``ctx.screen`` of a window (8-bit unorm colour).
+            origin: window pixel (x, y) from the bottom-left where the grid's corner goes.
+            flip_y: True for a window (y = 0 at the bottom), so array row 0 shows at the top.
+        """
+        viewport = (origin[0], origin[1], self.width, self.height)
+        self._draw(framebuffer, viewport, flip_y=1 if flip_y else 0)
+
+    # ----------------------------------------------------------------- lifetime
+    def live_objects(self) -> int:
+        """How many of the GL objects this compensator made are still alive (0 after release)."""
+        return sum(1 for o in self._objects if not isinstance(o.mglo, moderngl.InvalidObject))
+
+    def release(self) -> None:
+        """Release every GL object (and the context if this object created it). Idempotent."""
+        for obj in reversed(self._objects):  # each release() is idempotent
+            obj.release()
+        if self._own_ctx and not self._released:
+            self.ctx.release()
+        self._released = True
+
+    def __enter__(self) -> Compensator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()

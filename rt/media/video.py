@@ -1,0 +1,591 @@
+"""Video in and out with PyAV: a threaded decoder yielding yuv420p planes, and an encoder.
+
+No GL here: :class:`VideoReader` decodes on a worker thread into a bounded queue and yields
+:class:`~viewcomp.rt.media.frames.Planes` (already fitted to the projector grid) and audio items;
+:class:`VideoWriter` encodes RGB frames (H.264 via libx264 by default, yuv420p, the input's
+frame rate) and carries the audio over, writing to a temporary file in the output's folder
+that replaces the output only when everything succeeded.
+
+Decisions:
+
+- Frames of another size are scaled on the worker thread with swscale (bilinear) to fit the
+  grid, aspect kept, at even offsets, centred on black (Y = 16 or 0, C = 128). Both backends
+  then see the very same planes, hence the same RGB (:mod:`viewcomp.rt.media.frames`).
+- Colour metadata: BT.709 if the stream says so, BT.601 for BT.470BG/SMPTE170M; when
+  unspecified, BT.709 for height >= 720 and BT.601 below (FFmpeg's and players' habit).
+  ``yuvj*`` formats and ``color_range = JPEG`` are full range, anything else limited.
+  Formats other than yuv420p/yuvj420p (10-bit, 4:2:2, ...) are converted to 8-bit yuv420p
+  by swscale keeping matrix and range.
+- Output timestamps are frame index / rate (constant frame rate = the input's average rate);
+  the frame count is kept. The output is tagged limited range with the input's matrix.
+- Encoding: H.264 (libx264) CRF 18, preset ``veryfast`` by default (x264's own default,
+  ``medium``, costs ~3x the CPU time for somewhat smaller files); the preset applies to
+  libx264/libx265 only. :class:`EncodeThread` runs the encoder on its own thread behind a
+  bounded queue, so encoding overlaps decoding and the GL work (PyAV releases the GIL while
+  it converts and encodes).
+- Audio: remuxed (packets copied) when the output container takes the codec, else decoded on
+  the worker thread and re-encoded to AAC. Audio timestamps are shifted by the video stream's
+  start time so that A/V sync is kept with video starting at 0.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import queue
+import threading
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+from typing import Any, Literal
+
+import av
+import numpy as np
+
+from viewcomp.rt.media.frames import ColorRange, Colorspace, Planes, fit_rect, pad_planes
+
+log = logging.getLogger(__name__)
+
+AudioMode = Literal["packets", "frames", "none"]
+
+VIDEO_FIX = (
+    "check that it is a complete video file FFmpeg can decode (`ffprobe FILE`), or re-encode "
+    "it, e.g. `ffmpeg -i FILE -c:v libx264 -pix_fmt yuv420p -c:a aac fixed.mp4`"
+)
+_CRF_CODECS = {"libx264", "libx265", "libvpx", "libvpx-vp9", "libaom-av1", "libsvtav1"}
+_PRESET_CODECS = {"libx264", "libx265"}
+X264_PRESETS = (
+    "ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower",
+    "veryslow", "placebo",
+)  # fmt: skip
+DEFAULT_PRESET = "veryfast"
+_MP4_AUDIO = {"aac", "mp3", "alac", "opus", "flac", "ac3", "eac3"}
+_STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1", 8: "7.1"}
+_QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
+
+
+class VideoError(RuntimeError):
+    """A video cannot be read or written; the message names the file and the fix."""
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What the pipeline needs to know about an input video before decoding it.
+
+    ``rate`` frames per second; ``frames`` the container's count or duration x rate (an
+    estimate, or None); ``duration`` seconds or None; ``start`` the video stream's first
+    timestamp in seconds.
+    """
+
+    path: Path
+    width: int
+    height: int
+    rate: Fraction
+    frames: int | None
+    duration: float | None
+    start: float
+    colorspace: Colorspace
+    color_range: ColorRange
+    audio_codec: str | None
+
+
+@dataclass
+class AudioItem:
+    """An audio packet to remux (``packet``) or a decoded audio frame to encode (``frame``)."""
+
+    packet: Any = None
+    frame: Any = None
+
+
+@dataclass
+class _Failure:
+    exc: BaseException
+
+
+_END = object()
+
+
+def _colorspace(code: int, height: int) -> Colorspace:
+    if code == 1:
+        return "bt709"
+    if code in (5, 6):
+        return "bt601"
+    return "bt709" if height >= 720 else "bt601"
+
+
+class VideoReader:
+    """Decode a video on a worker thread into fitted yuv420p planes.
+
+    Args:
+        path: the input video.
+        fit: (W, H) of the projector grid; frames are scaled to fit (aspect kept, centred on
+            black). None keeps the input size.
+        audio: ``"packets"`` to yield audio packets for remuxing, ``"frames"`` to yield
+            decoded audio frames for re-encoding, ``"none"`` to skip audio.
+        queue_size: bound of the frame queue (decoded frames held in memory at most).
+
+    Iterating yields :class:`Planes` (with ``time`` in seconds from the first frame) and
+    :class:`AudioItem`, in demux order. Decoding errors surface as :class:`VideoError` in the
+    consuming thread. Use as a context manager, or call :meth:`close`.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        fit: tuple[int, int] | None = None,
+        audio: AudioMode = "packets",
+        queue_size: int = 8,
+    ) -> None:
+        self.path = Path(path)
+        self.fit = fit
+        self.audio_mode: AudioMode = audio
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        try:
+            self.container = av.open(str(self.path), "r")
+        except (av.FFmpegError, OSError, ValueError) as exc:
+            raise VideoError(f"cannot read video {self.path}: {exc}; fix: {VIDEO_FIX}") from exc
+        try:
+            self.info = self._probe()
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
+            self.container.close()
+            raise
+
+    def _probe(self) -> VideoInfo:
+        if not self.container.streams.video:
+            raise VideoError(
+                f"cannot read video {self.path}: it has no video stream; fix: {VIDEO_FIX}"
+            )
+        vs = self.container.streams.video[0]
+        self.video_stream = vs
+        self.audio_stream = (
+            self.container.streams.audio[0] if self.container.streams.audio else None
+        )
+        cc = vs.codec_context
+        rate = vs.average_rate or vs.guessed_rate or vs.base_rate
+        if not rate or rate <= 0 or not cc.width or not cc.height:
+            raise VideoError(
+                f"cannot read video {self.path}: no frame rate or size in its video stream; "
+                f"fix: {VIDEO_FIX}"
+            )
+        rate = Fraction(rate)
+        duration = None
+        if vs.duration is not None and vs.time_base is not None:
+            duration = float(vs.duration * vs.time_base)
+        elif self.container.duration is not None:
+            duration = self.container.duration / av.time_base
+        frames = int(vs.frames) if vs.frames else None
+        if frames is None and duration is not None:
+            frames = round(duration * rate)
+        start = float(vs.start_time * vs.time_base) if vs.start_time is not None else 0.0
+        fmt = cc.format.name if cc.format is not None else ""
+        full = fmt.startswith("yuvj") or int(cc.color_range or 0) == 2
+        return VideoInfo(
+            path=self.path,
+            width=int(cc.width),
+            height=int(cc.height),
+            rate=rate,
+            frames=frames,
+            duration=duration,
+            start=start,
+            colorspace=_colorspace(int(cc.colorspace or 2), int(cc.height)),
+            color_range="full" if full else "limited",
+            audio_codec=self.audio_stream.codec_context.name if self.audio_stream else None,
+        )
+
+    # ------------------------------------------------------------------ worker
+    def _put(self, item: Any) -> bool:
+        while not self._stop.is_set():
+            try:
+                self._queue.put(item, timeout=_QUEUE_POLL)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _planes(self, frame: av.VideoFrame, t0: float) -> Planes:
+        fmt = frame.format.name
+        full = fmt.startswith("yuvj") or int(frame.color_range or 0) == 2
+        crange: ColorRange = "full" if full else "limited"
+        cspace = _colorspace(int(frame.colorspace or 2), frame.height)
+        w, h = frame.width, frame.height
+        tw, th = self.fit if self.fit is not None else (w, h)
+        x0, y0, fw, fh = fit_rect(w, h, tw, th, even=True)
+        if (fw, fh) != (w, h) or fmt not in ("yuv420p", "yuvj420p"):
+            rng = (
+                av.video.reformatter.ColorRange.JPEG
+                if full
+                else av.video.reformatter.ColorRange.MPEG
+            )
+            frame = frame.reformat(
+                width=fw, height=fh, format="yuv420p", src_color_range=rng, dst_color_range=rng
+            )
+        planes = []
+        for p in frame.planes:
+            arr = np.frombuffer(p, np.uint8).reshape(p.height, p.line_size)[:, : p.width]
+            planes.append(arr)
+        if (fw, fh) == (tw, th):
+            y, u, v = (np.ascontiguousarray(a) for a in planes)
+        else:
+            y, u, v = pad_planes(*planes, x0, y0, tw, th, crange)
+        t = float(frame.time) - t0 if frame.time is not None else 0.0
+        return Planes(y, u, v, cspace, crange, t)
+
+    def _run(self) -> None:
+        try:
+            streams = [self.video_stream]
+            if self.audio_stream is not None and self.audio_mode != "none":
+                streams.append(self.audio_stream)
+            t0 = self.info.start
+            for packet in self.container.demux(streams):
+                if self._stop.is_set():
+                    return
+                if packet.stream.type == "video":
+                    for frame in packet.decode():
+                        if not self._put(self._planes(frame, t0)):
+                            return
+                elif self.audio_mode == "packets":
+                    if packet.size and packet.dts is not None:
+                        if not self._put(AudioItem(packet=packet)):
+                            return
+                else:
+                    for aframe in packet.decode():
+                        if not self._put(AudioItem(frame=aframe)):
+                            return
+            self._put(_END)
+        except BaseException as exc:  # handed to the consumer, which re-raises it
+            self._put(_Failure(exc))
+
+    # ------------------------------------------------------------------ consumer
+    def __iter__(self) -> Iterator[Planes | AudioItem]:
+        if self._thread is not None:
+            raise RuntimeError("a VideoReader can be iterated once")
+        self._thread = threading.Thread(target=self._run, name="viewcomp-decode", daemon=True)
+        self._thread.start()
+        while True:
+            item = self._queue.get()
+            if item is _END:
+                return
+            if isinstance(item, _Failure):
+                raise VideoError(
+                    f"cannot decode video {self.path}: {item.exc}; fix: {VIDEO_FIX}"
+                ) from item.exc
+            yield item
+
+    def close(self) -> None:
+        """Stop the worker thread and close the file."""
+        self._stop.set()
+        if self._thread is not None:
+            while self._thread.is_alive():
+                try:  # unblock a worker waiting on a full queue
+                    self._queue.get_nowait()
+                except queue.Empty:
+                    pass
+                self._thread.join(timeout=_QUEUE_POLL)
+        self.container.close()
+
+    def __enter__(self) -> VideoReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def temp_path_for(output: Path) -> Path:
+    """A hidden temporary path next to ``output`` with the same extension."""
+    return output.with_name(f".{output.stem}.{uuid.uuid4().hex[:8]}.partial{output.suffix}")
+
+
+class VideoWriter:
+    """Encode RGB frames to a video, carrying one audio stream over; atomic on success.
+
+    Args:
+        path: the output file; its extension picks the container (``.mp4``, ``.mkv``, ...).
+        width, height: frame size in pixels (yuv420p codecs want even sizes).
+        rate: frames per second (the input's).
+        codec: FFmpeg encoder name, ``libx264`` by default.
+        crf: constant rate factor for the encoders that have one (x264/x265/vpx/aom/svt).
+        preset: x264/x265 speed preset (:data:`X264_PRESETS`), ``veryfast`` by default;
+            ignored by other encoders.
+        colorspace: matrix to encode and tag with (``bt601``/``bt709``); range is limited.
+        audio: the input's audio stream (a template; read before decoding starts) or None.
+
+    Frames are written with :meth:`write`, audio with :meth:`write_audio`; :meth:`close`
+    flushes and renames into place, :meth:`abort` (or an exception in a ``with`` block)
+    deletes the temporary file. :attr:`audio_mode` tells the reader what to deliver.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        width: int,
+        height: int,
+        rate: Fraction,
+        codec: str = "libx264",
+        crf: float = 18,
+        colorspace: Colorspace = "bt709",
+        audio: Any = None,
+        audio_start: float = 0.0,
+        preset: str = DEFAULT_PRESET,
+    ) -> None:
+        if codec in _PRESET_CODECS and preset not in X264_PRESETS:
+            raise VideoError(
+                f"cannot write video {path}: unknown preset {preset!r}; fix: use one of "
+                f"{', '.join(X264_PRESETS)}"
+            )
+        self.preset = preset
+        self.path = Path(path)
+        self.tmp = temp_path_for(self.path)
+        self.colorspace = colorspace
+        self._index = 0
+        self._closed = False
+        try:
+            self.container = av.open(str(self.tmp), "w")
+        except (av.FFmpegError, OSError, ValueError) as exc:
+            raise VideoError(
+                f"cannot write video {self.path}: {exc}; fix: use a writable folder and a "
+                "video extension such as .mp4 or .mkv"
+            ) from exc
+        try:
+            self._setup(width, height, rate, codec, crf, audio, audio_start)
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
+            self.abort()
+            raise
+
+    def _setup(
+        self,
+        width: int,
+        height: int,
+        rate: Fraction,
+        codec: str,
+        crf: float,
+        audio: Any,
+        audio_start: float,
+    ) -> None:
+        try:
+            vs = self.container.add_stream(codec, rate=rate)
+        except (av.FFmpegError, ValueError) as exc:
+            raise VideoError(
+                f"cannot write video {self.path}: encoder {codec!r} unavailable ({exc}); fix: "
+                "use --codec libx264"
+            ) from exc
+        vs.width, vs.height = width, height
+        vs.pix_fmt = "yuv420p"
+        cc = vs.codec_context
+        cc.time_base = Fraction(1) / rate
+        cc.framerate = rate
+        cc.colorspace = 1 if self.colorspace == "bt709" else 6
+        cc.color_range = 1
+        options = {}
+        if codec in _CRF_CODECS:
+            options["crf"] = str(crf)
+        if codec in _PRESET_CODECS:
+            options["preset"] = self.preset
+        vs.options = options
+        self.video = vs
+        self.audio_mode: AudioMode = "none"
+        self.audio_out: Any = None
+        self._audio_shift = audio_start
+        if audio is None:
+            return
+        name = audio.codec_context.name
+        fmt = self.container.format.name
+        can_copy = name in self.container.supported_codecs and (
+            "mp4" not in fmt or name in _MP4_AUDIO
+        )
+        if can_copy:
+            self.audio_out = self.container.add_stream_from_template(audio)
+            self.audio_mode = "packets"
+        else:
+            acc = audio.codec_context
+            self.audio_out = self.container.add_stream("aac", rate=acc.sample_rate or 48000)
+            n = acc.layout.nb_channels if acc.layout is not None else 2
+            # Streams without a channel order ("2 channels") get the standard one.
+            self.audio_out.layout = _STD_LAYOUTS.get(n, "stereo")
+            self.audio_mode = "frames"
+
+    def write(self, rgb: np.ndarray) -> None:
+        """Encode one RGB frame (H, W, 3) uint8 at timestamp index / rate."""
+        frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
+        cs = av.video.reformatter.Colorspace
+        frame = frame.reformat(
+            format="yuv420p",
+            dst_colorspace=cs.ITU709 if self.colorspace == "bt709" else cs.ITU601,
+            dst_color_range=av.video.reformatter.ColorRange.MPEG,
+        )
+        frame.pts = self._index
+        frame.time_base = self.video.codec_context.time_base
+        self._index += 1
+        for packet in self.video.encode(frame):
+            self.container.mux(packet)
+
+    def write_audio(self, item: AudioItem) -> None:
+        """Remux an audio packet or encode an audio frame (as :attr:`audio_mode` says)."""
+        if self.audio_out is None:
+            return
+        if item.packet is not None:
+            pkt = item.packet
+            shift = round(self._audio_shift / pkt.time_base) if pkt.time_base else 0
+            if pkt.pts is not None:
+                pkt.pts -= shift
+            if pkt.dts is not None:
+                pkt.dts -= shift
+            pkt.stream = self.audio_out
+            self.container.mux(pkt)
+        elif item.frame is not None:
+            fr = item.frame
+            if fr.pts is not None and fr.time_base:
+                fr.pts -= round(self._audio_shift / fr.time_base)
+            for packet in self.audio_out.encode(fr):
+                self.container.mux(packet)
+
+    @property
+    def frames_written(self) -> int:
+        """Video frames encoded so far."""
+        return self._index
+
+    def close(self) -> None:
+        """Flush the encoders, close the file and move it to :attr:`path`."""
+        if self._closed:
+            return
+        try:
+            for packet in self.video.encode(None):
+                self.container.mux(packet)
+            if self.audio_mode == "frames":
+                for packet in self.audio_out.encode(None):
+                    self.container.mux(packet)
+            self.container.close()
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
+            self.abort()
+            raise
+        self._closed = True
+        os.replace(self.tmp, self.path)
+
+    def abort(self) -> None:
+        """Close without finishing and delete the temporary file; no output is left."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self.container.close()
+        except av.FFmpegError as exc:  # the file is deleted next; its state does not matter
+            log.warning("closing the partial video %s failed: %s", self.tmp, exc)
+        finally:
+            self.tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+class EncodeThread:
+    """Runs a :class:`VideoWriter` on its own thread: frames and audio in, in order.
+
+    Read-back buffers come from a small pool (:meth:`buffer`) and go back to it once encoded,
+    so the steady state allocates nothing per frame. At most ``depth`` items wait in the
+    queue; :meth:`buffer` and :meth:`put_frame` block while the encoder is behind. An error on
+    the encoder thread is raised in the caller's thread by the next call.
+
+    Use :meth:`close` (flush, rename into place) or :meth:`abort` (no output left); as a
+    context manager, an exception aborts.
+    """
+
+    def __init__(self, writer: VideoWriter, shape: tuple[int, int, int], depth: int = 3) -> None:
+        self.writer = writer
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=depth)
+        self._free: queue.Queue[np.ndarray] = queue.Queue()
+        for _ in range(depth + 3):  # queued, being encoded, in flight, being filled
+            self._free.put(np.empty(shape, np.uint8))
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-encode", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is _END or self._stop.is_set():
+                return
+            try:
+                if isinstance(item, AudioItem):
+                    self.writer.write_audio(item)
+                else:
+                    self.writer.write(item)
+                    self._free.put(item)
+            except BaseException as exc:  # re-raised in the caller's thread
+                self._error = exc
+                self._stop.set()
+                return
+
+    def _check(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def _put(self, item: Any) -> None:
+        while True:
+            self._check()
+            try:
+                self._queue.put(item, timeout=_QUEUE_POLL)
+                return
+            except queue.Full:
+                continue
+
+    def buffer(self) -> np.ndarray:
+        """A free (H, W, 3) uint8 array to render the next frame into."""
+        while True:
+            self._check()
+            try:
+                return self._free.get(timeout=_QUEUE_POLL)
+            except queue.Empty:
+                continue
+
+    def put_frame(self, rgb: np.ndarray) -> None:
+        """Queue a frame (a :meth:`buffer` array) for encoding; it returns to the pool."""
+        self._put(rgb)
+
+    def put_audio(self, item: AudioItem) -> None:
+        """Queue an audio item (written in order with the frames)."""
+        self._put(item)
+
+    @property
+    def frames_written(self) -> int:
+        """Frames encoded so far (all of them after :meth:`close`)."""
+        return self.writer.frames_written
+
+    def close(self) -> None:
+        """Encode what is queued, flush and move the file into place."""
+        self._put(_END)
+        self._thread.join()
+        self._check()
+        self.writer.close()
+
+    def abort(self) -> None:
+        """Stop without finishing; the temporary file is deleted."""
+        self._stop.set()
+        while self._thread.is_alive():
+            try:  # unblock a put waiting on a full queue; the thread then sees the flag
+                self._queue.get_nowait()
+            except queue.Empty:
+                try:
+                    self._queue.put_nowait(_END)
+                except queue.Full:
+                    pass
+            self._thread.join(timeout=_QUEUE_POLL)
+        self.writer.abort()
+
+    def __enter__(self) -> EncodeThread:
+        return self
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

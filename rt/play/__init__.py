@@ -1,0 +1,9 @@
+"""Live use: the fullscreen player, live eye input, the embedding API, a private X server.
+
+- ``embed``: Compensation with a live eye into a host's framebuffer: the embedding API.
+- ``live``: Live eye input for playback: parsing, validation, smoothing and the listener
+  threads.
+- ``player``: `viewcomp play`: fullscreen playback with a live viewing angle (glfw window, GL
+  3.3).
+- ``xvfb``: A private X server (Xvfb) for tests and headless runs of the player and of mpv.
+"""

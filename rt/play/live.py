@@ -1,0 +1,554 @@
+"""Live eye input for playback: parsing, validation, smoothing and the listener threads.
+
+No GL and no window here, so everything is testable on its own. Sources (INTERFACES.md,
+"Live angle input"):
+
+- OSC over UDP: ``/viewcomp/angle f`` (degrees) and ``/viewcomp/eye fff`` (metres), in a
+  message or (possibly nested) bundles; bundle time tags are ignored (applied on arrival).
+- Lines on standard input (or any file descriptor): ``angle 60`` and ``eye 0.1 0.0 0.5``
+  (commas also separate the numbers); blank lines and lines starting with ``#`` are ignored.
+- Keys and mouse (from :mod:`viewcomp.rt.play.player`): relative moves of the angle.
+
+A malformed or out-of-range message raises :class:`InputError` in the pure parsers; the
+listeners log it (rate-limited: the first few per source, then a count every few seconds)
+and drop it, and playback goes on. Every valid command goes through one :class:`InputHub`
+(thread-safe) to the playback thread, which applies it to an :class:`EyeState`: the target
+jumps, the eye follows it with an exponential time constant so the picture never jumps.
+
+Conventions: an angle is in degrees, 90 = straight in front, < 90 the audience's right;
+the eye for an angle is E = (d cos t, h, d sin t) with the rig's viewer distance d and
+height h (metres, world frame of MODEL.md, screen at z = 0).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import queue
+import select
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+ANGLE_ADDRESS = "/viewcomp/angle"
+EYE_ADDRESS = "/viewcomp/eye"
+ANGLE_MIN, ANGLE_MAX = 1.0, 179.0  # degrees: an angle outside (0, 180) is rejected,
+# and relative moves (keys, mouse) stop at these limits
+EYE_LIMIT = 50.0  # metres: |x|, |y|, |z| of an eye position
+MAX_LINE = 256  # characters of one stdin line (longer: rejected)
+MAX_MESSAGES_PER_PACKET = 64  # messages taken from one OSC bundle; the rest are rejected
+SNAP = 1e-6  # metres: the smoothed eye snaps to the target when this close
+
+
+class InputError(ValueError):
+    """A malformed or out-of-range eye command; the message says what and what is expected."""
+
+
+@dataclass(frozen=True)
+class SetAngle:
+    """Move to viewing angle ``degrees`` at the rig's viewer distance and height."""
+
+    degrees: float
+
+
+@dataclass(frozen=True)
+class SetEye:
+    """Move to eye position ``eye`` = (x, y, z) metres."""
+
+    eye: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class NudgeAngle:
+    """Turn the target by ``degrees`` around the screen centre, keeping distance and height."""
+
+    degrees: float
+
+
+Command = SetAngle | SetEye | NudgeAngle
+
+
+# ----------------------------------------------------------------------- validation
+def _number(value: Any, what: str) -> float:
+    """A finite float from an int/float (not bool, not str), else InputError."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise InputError(f"{what} must be a number, got {type(value).__name__} {value!r:.40}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise InputError(f"{what} must be finite, got {v}")
+    return v
+
+
+def check_angle(value: Any) -> float:
+    """A viewing angle in degrees, strictly inside (0, 180); else InputError."""
+    v = _number(value, "an angle")
+    if not 0.0 < v < 180.0:
+        raise InputError(f"an angle is in (0, 180) degrees (90 = in front), got {v:g}")
+    return v
+
+
+def check_eye(values: Sequence[Any]) -> tuple[float, float, float]:
+    """An eye position (x, y, z) metres: finite, z > 0, each |coordinate| <= EYE_LIMIT."""
+    if len(values) != 3:
+        raise InputError(f"an eye position is three numbers x y z (metres), got {len(values)}")
+    x, y, z = (_number(v, "an eye coordinate") for v in values)
+    if max(abs(x), abs(y), abs(z)) > EYE_LIMIT:
+        raise InputError(f"an eye position is within {EYE_LIMIT:g} m of the screen, got "
+                         f"({x:g}, {y:g}, {z:g})")  # fmt: skip
+    if z <= 0.0:
+        raise InputError(f"the eye must be in front of the screen (z > 0), got z = {z:g}")
+    return x, y, z
+
+
+# ----------------------------------------------------------------------- parsers
+def parse_line(line: str) -> Command | None:
+    """One stdin line -> a command, or None for a blank or ``#`` comment line.
+
+    Grammar (case-insensitive keyword, numbers separated by spaces or commas)::
+
+        angle DEG
+        eye X Y Z
+
+    Raises:
+        InputError: anything else, numbers out of range, or a line over MAX_LINE characters.
+    """
+    if len(line) > MAX_LINE:
+        raise InputError(f"line too long ({len(line)} > {MAX_LINE} characters)")
+    text = line.strip()
+    if not text or text.startswith("#"):
+        return None
+    words = text.replace(",", " ").split()
+    key, args = words[0].lower(), words[1:]
+    try:
+        nums = [float(a) for a in args]
+    except ValueError:
+        raise InputError(f"not numbers in {text!r:.60}; expected `angle 60` or "
+                         "`eye 0.1 0.0 0.5`") from None  # fmt: skip
+    if key == "angle":
+        if len(nums) != 1:
+            raise InputError(f"`angle` takes one number (degrees), got {len(nums)}")
+        return SetAngle(check_angle(nums[0]))
+    if key == "eye":
+        return SetEye(check_eye(nums))
+    raise InputError(f"unknown command {words[0]!r:.30}; expected `angle DEG` or `eye X Y Z`")
+
+
+def parse_osc_message(address: str, args: Sequence[Any]) -> Command:
+    """An OSC message (address, arguments) -> a command.
+
+    ``/viewcomp/angle`` takes one number (int, float or double), ``/viewcomp/eye`` three.
+
+    Raises:
+        InputError: another address, a wrong count or type of arguments, out of range.
+    """
+    if address == ANGLE_ADDRESS:
+        if len(args) != 1:
+            raise InputError(f"{ANGLE_ADDRESS} takes one number (degrees), got {len(args)}")
+        return SetAngle(check_angle(args[0]))
+    if address == EYE_ADDRESS:
+        return SetEye(check_eye(args))
+    raise InputError(f"unknown OSC address {address!r:.60}; expected {ANGLE_ADDRESS} or "
+                     f"{EYE_ADDRESS}")  # fmt: skip
+
+
+def parse_osc_packet(data: bytes) -> list[Command | InputError]:
+    """A UDP datagram -> one result per OSC message in it (a command or the error).
+
+    Raises:
+        InputError: the datagram is not an OSC message or bundle at all.
+    """
+    from pythonosc.osc_packet import OscPacket
+
+    if len(data) % 4:  # OSC 1.0: every packet is a multiple of 4 bytes (python-osc pads)
+        raise InputError(f"not an OSC packet: {len(data)} bytes is not a multiple of 4")
+    try:
+        messages = OscPacket(data).messages
+    except Exception as exc:  # python-osc raises ParseError and, on some junk, others
+        raise InputError(f"not an OSC packet ({len(data)} bytes): {exc}") from None
+    out: list[Command | InputError] = []
+    for i, timed in enumerate(messages):
+        if i >= MAX_MESSAGES_PER_PACKET:
+            out.append(InputError(f"more than {MAX_MESSAGES_PER_PACKET} messages in a bundle"))
+            continue
+        msg = timed.message
+        try:
+            out.append(parse_osc_message(msg.address, list(msg.params)))
+        except InputError as exc:
+            out.append(exc)
+    return out
+
+
+# ----------------------------------------------------------------------- state
+def eye_to_polar(eye: np.ndarray) -> tuple[float, float, float]:
+    """(angle degrees, distance d, height h) of an eye: E = (d cos t, h, d sin t)."""
+    x, y, z = (float(v) for v in eye)
+    return math.degrees(math.atan2(z, x)), math.hypot(x, z), y
+
+
+def polar_to_eye(angle: float, distance: float, height: float) -> np.ndarray:
+    """E = (d cos t, h, d sin t), float64 (3,)."""
+    t = math.radians(angle)
+    return np.array([distance * math.cos(t), height, distance * math.sin(t)])
+
+
+class EyeState:
+    """The target eye (set by commands) and the smoothed eye that follows it.
+
+    Args:
+        distance, height: the rig's viewer distance and eye height (metres), used by
+            :class:`SetAngle`.
+        eye: the start position (3,) metres (target and current).
+        tau: smoothing time constant in seconds (<= 0: the eye jumps to the target).
+    """
+
+    def __init__(self, distance: float, height: float, eye: Sequence[float], tau: float):
+        self.distance = float(distance)
+        self.height = float(height)
+        self.target = np.asarray(eye, np.float64).copy()
+        self.current = self.target.copy()
+        self.tau = float(tau)
+        self._t: float | None = None
+
+    def apply(self, cmd: Command) -> None:
+        """Set the target from a command (already validated)."""
+        if isinstance(cmd, SetAngle):
+            self.target = polar_to_eye(cmd.degrees, self.distance, self.height)
+        elif isinstance(cmd, SetEye):
+            self.target = np.asarray(cmd.eye, np.float64)
+        elif isinstance(cmd, NudgeAngle):
+            angle, d, h = eye_to_polar(self.target)
+            angle = min(ANGLE_MAX, max(ANGLE_MIN, angle + cmd.degrees))
+            self.target = polar_to_eye(angle, d, h)
+        else:  # pragma: no cover - the type union is closed
+            raise TypeError(f"not a command: {cmd!r}")
+
+    def jump(self) -> None:
+        """Move the current eye to the target at once."""
+        self.current = self.target.copy()
+
+    def update(self, now: float) -> np.ndarray:
+        """Advance the smoothed eye to time ``now`` (seconds, monotonic); returns it."""
+        dt = 0.0 if self._t is None else max(now - self._t, 0.0)
+        self._t = now
+        if self.tau <= 0.0:
+            self.current = self.target.copy()
+        else:
+            k = 1.0 - math.exp(-dt / self.tau)
+            self.current = self.current + k * (self.target - self.current)
+            if float(np.max(np.abs(self.target - self.current))) < SNAP:
+                self.current = self.target.copy()
+        return self.current
+
+    @property
+    def settled(self) -> bool:
+        """True when the smoothed eye has reached the target."""
+        return bool(np.array_equal(self.current, self.target))
+
+
+# ----------------------------------------------------------------------- hub
+@dataclass
+class SourceCounts:
+    """Per source: commands received valid, applied by the playback thread, rejected."""
+
+    received: int = 0
+    applied: int = 0
+    rejected: int = 0
+    last_error: str = ""
+
+
+@dataclass(frozen=True)
+class Received:
+    """A valid command, where it came from and when it arrived (time.monotonic seconds)."""
+
+    source: str
+    command: Command
+    at: float
+
+
+class _RateLimit:
+    """Log the first ``burst`` rejections per source, then one summary per ``period`` s."""
+
+    def __init__(self, burst: int = 10, period: float = 5.0) -> None:
+        self.burst, self.period = burst, period
+        self.count: dict[str, int] = {}
+        self.hidden: dict[str, int] = {}
+        self.last: dict[str, float] = {}
+
+    def __call__(self, source: str, message: str) -> None:
+        n = self.count.get(source, 0) + 1
+        self.count[source] = n
+        if n <= self.burst:
+            log.warning("%s: dropped: %s", source, message)
+            if n == self.burst:
+                log.warning("%s: further dropped messages are counted, not logged", source)
+            self.last[source] = time.monotonic()
+            return
+        self.hidden[source] = self.hidden.get(source, 0) + 1
+        now = time.monotonic()
+        if now - self.last.get(source, 0.0) >= self.period:
+            log.warning("%s: %d more malformed messages dropped (last: %s)", source,
+                        self.hidden[source], message)  # fmt: skip
+            self.hidden[source] = 0
+            self.last[source] = now
+
+
+class InputHub:
+    """Where every input source delivers: valid commands queued, rejections counted.
+
+    ``put``/``reject`` may be called from any thread; ``drain`` from the playback thread,
+    which then calls ``applied`` for what it applied. Counters are per source name.
+    """
+
+    def __init__(self) -> None:
+        self._queue: queue.SimpleQueue[Received] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self.counts: dict[str, SourceCounts] = {}
+        self._log = _RateLimit()
+
+    def _c(self, source: str) -> SourceCounts:
+        c = self.counts.get(source)
+        if c is None:
+            c = self.counts[source] = SourceCounts()
+        return c
+
+    def put(self, source: str, command: Command) -> None:
+        """Queue a valid command from ``source``."""
+        with self._lock:
+            self._c(source).received += 1
+        self._queue.put(Received(source, command, time.monotonic()))
+
+    def reject(self, source: str, error: Exception | str) -> None:
+        """Count and (rate-limited) log a malformed or out-of-range message."""
+        text = str(error)
+        with self._lock:
+            c = self._c(source)
+            c.rejected += 1
+            c.last_error = text
+            self._log(source, text)
+
+    def drain(self, limit: int = 100_000) -> list[Received]:
+        """Everything queued so far (at most ``limit``), oldest first. Non-blocking."""
+        out: list[Received] = []
+        while len(out) < limit:
+            try:
+                out.append(self._queue.get_nowait())
+            except queue.Empty:
+                break
+        return out
+
+    def applied(self, item: Received) -> None:
+        """Record that the playback thread applied ``item``."""
+        with self._lock:
+            self._c(item.source).applied += 1
+
+    def snapshot(self) -> dict[str, SourceCounts]:
+        """A copy of the counters."""
+        with self._lock:
+            return {k: SourceCounts(**vars(v)) for k, v in self.counts.items()}
+
+
+# ----------------------------------------------------------------------- listeners
+def parse_host_port(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
+    """'HOST:PORT', ':PORT' or 'PORT' (and '[::1]:PORT') -> (host, port 0..65535).
+
+    Raises:
+        InputError: not of that form.
+    """
+    text = text.strip()
+    host, sep, port_s = text.rpartition(":")
+    if not sep:
+        host, port_s = "", text
+    host = host.strip("[]") or default_host
+    try:
+        port = int(port_s)
+    except ValueError:
+        raise InputError(f"an OSC address is HOST:PORT, e.g. 127.0.0.1:9000; got {text!r}")\
+            from None  # fmt: skip
+    if not 0 <= port <= 65535:
+        raise InputError(f"a UDP port is 0..65535, got {port}")
+    return host, port
+
+
+class OscListener:
+    """A UDP socket on (host, port) and a thread turning datagrams into commands.
+
+    Port 0 takes a free port (see :attr:`address`). Use :meth:`start` / :meth:`stop`, or a
+    ``with`` block. Datagrams over 64 KiB do not exist in UDP; every datagram is parsed with
+    :func:`parse_osc_packet` and each message is put to the hub or rejected.
+    """
+
+    source = "osc"
+
+    def __init__(self, hub: InputHub, host: str = "127.0.0.1", port: int = 9000) -> None:
+        self.hub = hub
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+            self.sock.bind((host, port))
+        except OSError as exc:
+            self.sock.close()
+            raise InputError(f"cannot listen for OSC on {host}:{port}: {exc}; fix: use a free "
+                             "port, e.g. --osc 127.0.0.1:9000") from exc  # fmt: skip
+        self.sock.settimeout(0.1)
+        self.address: tuple[str, int] = self.sock.getsockname()[:2]
+        self.packets = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-osc", daemon=True)
+
+    def start(self) -> OscListener:
+        """Start the listening thread."""
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data, _ = self.sock.recvfrom(65536)
+            except TimeoutError:
+                continue
+            except OSError:
+                if self._stop.is_set():
+                    return
+                continue
+            self.packets += 1
+            try:
+                results = parse_osc_packet(data)
+            except InputError as exc:
+                self.hub.reject(self.source, exc)
+                continue
+            for r in results:
+                if isinstance(r, InputError):
+                    self.hub.reject(self.source, r)
+                else:
+                    self.hub.put(self.source, r)
+
+    def stop(self) -> None:
+        """Stop the thread and close the socket."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.sock.close()
+
+    def __enter__(self) -> OscListener:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+@dataclass
+class _LineBuffer:
+    """Splits a byte stream into lines; an over-long line is reported once, then skipped."""
+
+    limit: int = MAX_LINE
+    data: bytearray = field(default_factory=bytearray)
+    skipping: bool = False
+
+    def feed(self, chunk: bytes) -> list[bytes | None]:
+        """Complete lines in ``chunk`` (None stands for an over-long line)."""
+        out: list[bytes | None] = []
+        self.data += chunk
+        while True:
+            nl = self.data.find(b"\n")
+            if nl < 0:
+                if len(self.data) > self.limit and not self.skipping:
+                    out.append(None)
+                    self.skipping = True
+                if self.skipping:
+                    self.data.clear()
+                return out
+            line = bytes(self.data[:nl])
+            del self.data[: nl + 1]
+            if self.skipping:
+                self.skipping = False
+                continue
+            out.append(None if len(line) > self.limit else line)
+
+    def tail(self) -> bytes | None:
+        """What is left at end of stream (a last line without newline)."""
+        if self.skipping or not self.data:
+            return None
+        return bytes(self.data)
+
+
+class LineReader:
+    """A thread reading command lines from a file descriptor (standard input by default).
+
+    Reads with ``select`` and a timeout so that :meth:`stop` ends it promptly; end of file
+    ends it quietly. Bytes that are not UTF-8 and over-long lines are rejected.
+    """
+
+    source = "stdin"
+
+    def __init__(self, hub: InputHub, fd: int | None = None) -> None:
+        self.hub = hub
+        self.fd = 0 if fd is None else fd
+        self.lines = 0
+        self.eof = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-stdin", daemon=True)
+
+    def start(self) -> LineReader:
+        """Start the reading thread."""
+        self._thread.start()
+        return self
+
+    def _handle(self, raw: bytes | None) -> None:
+        self.lines += 1
+        if raw is None:
+            self.hub.reject(self.source, f"line too long (> {MAX_LINE} characters)")
+            return
+        try:
+            text = raw.decode("utf-8").rstrip("\r")
+            cmd = parse_line(text)
+        except UnicodeDecodeError:
+            self.hub.reject(self.source, "not UTF-8 text")
+            return
+        except InputError as exc:
+            self.hub.reject(self.source, exc)
+            return
+        if cmd is not None:
+            self.hub.put(self.source, cmd)
+
+    def _run(self) -> None:
+        buf = _LineBuffer()
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([self.fd], [], [], 0.1)
+            except (OSError, ValueError):
+                break  # closed descriptor
+            if not ready:
+                continue
+            try:
+                chunk = os.read(self.fd, 65536)
+            except OSError:
+                break
+            if not chunk:
+                tail = buf.tail()
+                if tail is not None:
+                    self._handle(tail)
+                break
+            for raw in buf.feed(chunk):
+                self._handle(raw)
+        self.eof = True
+
+    def stop(self) -> None:
+        """Stop the thread (it is a daemon; the descriptor is not closed)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+
+    def __enter__(self) -> LineReader:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

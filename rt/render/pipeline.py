@@ -1,0 +1,423 @@
+"""Headless rendering of an image or a video through the compensation (``viewcomp render``).
+
+One function, :func:`render_file`, for both backends and for images and videos::
+
+    decode (worker thread) -> fit to the grid -> thumbnail -> eye = eye_track(t)
+        -> p = comp(thumb, eye, t)               (model, alpha, beta for this frame)
+        -> compensate (GL Compensator, or viewcomp.calib.model.reference.compensate)
+        -> encode (PNG, or PyAV video on its own thread, audio carried over)
+
+Interfaces decided here (for the CLI wiring):
+
+- ``comp``: the frame parameters, duck-typed like
+  :class:`viewcomp.calib.comp.compensation.Compensation`: ``shape`` (H, W), ``method``
+  (``"pixel"``/``"paper"``), ``base_model()`` (a model of the right method and grid, used to
+  set the GL side up) and ``comp(thumb, eye, t) -> FrameParams`` with ``model``, ``alpha``,
+  ``beta``, called once per frame in order (it may smooth over time: the lead builds it with
+  ``tau`` for video). For ``paper`` the model changes with the eye; the GL backend
+  re-uploads its ``Wc_inv``/``inv_lut``/``inv_lo``/``inv_hi`` only when ``p.model is not``
+  the previous one (Compensation caches models). Grid and method stay fixed per file.
+- ``eye_track``: callable ``t_seconds -> eye (3,)`` metres; see :mod:`viewcomp.rt.render.tracks`.
+  Images use t = 0 for the eye and no time for ``comp`` (no smoothing).
+- Thumbnails: images use ``viewcomp.calib.comp.compensation.thumbnail`` (area average); video
+  frames :func:`viewcomp.rt.media.frames.thumbnail_planes` at the same size (nearest on the
+  planes, cheap), identical for both backends.
+- ``identity``: the very same decode/upload/shader/read-back/encode with compensation off;
+  ``comp`` is not called (nothing to compensate).
+- Images: any OpenCV-readable file in (8-bit RGB after decoding); the output must be ``.png``
+  (8-bit RGB at the grid size). Videos: anything PyAV decodes; output container from the
+  extension, codec/CRF/preset selectable, frame rate, frame count and audio kept.
+- Outputs are written to a temporary file next to the output and renamed at the end; on any
+  error nothing is left at (or next to) the output path.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
+from viewcomp.calib.model.reference import RuntimeModel, compensate
+from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
+from viewcomp.rt.media.video import (
+    DEFAULT_PRESET,
+    AudioItem,
+    EncodeThread,
+    VideoReader,
+    VideoWriter,
+    temp_path_for,
+)
+from viewcomp.rt.render.tracks import EyeTrack
+
+Backend = Literal["gl", "cpu"]
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+
+class FrameParamsLike(Protocol):
+    """What ``comp(thumb, eye, t)`` returns (``viewcomp.calib.comp.compensation.FrameParams``)."""
+
+    model: RuntimeModel
+    alpha: float
+    beta: float
+
+
+class CompensationLike(Protocol):
+    """The per-frame parameters (``viewcomp.calib.comp.compensation.Compensation``)."""
+
+    method: str
+
+    @property
+    def shape(self) -> tuple[int, int]: ...
+
+    def base_model(self) -> RuntimeModel: ...
+
+    def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> Any: ...
+
+
+class ImageError(RuntimeError):
+    """An input image cannot be read or the output image cannot be written."""
+
+
+@dataclass(frozen=True)
+class RenderStats:
+    """What :func:`render_file` did.
+
+    ``frames`` rendered in ``seconds`` wall time; ``startup_seconds`` until the first frame
+    was handed to the encoder (context, shader compile, uploads, first decode);
+    ``params_seconds`` spent in ``comp(thumb, eye, t)`` (thumbnail included).
+    """
+
+    kind: Literal["image", "video"]
+    frames: int
+    seconds: float
+    startup_seconds: float = 0.0
+    params_seconds: float = 0.0
+
+    @property
+    def fps(self) -> float:
+        """Frames per second over the whole run (including start-up)."""
+        return self.frames / self.seconds if self.seconds > 0 else float("inf")
+
+
+def is_image(path: str | os.PathLike[str]) -> bool:
+    """True when the path's extension is an image format (by name, not content)."""
+    return Path(path).suffix.lower() in IMAGE_SUFFIXES
+
+
+class _Engine:
+    """Per-frame compensation with one backend; owns the Compensator for ``gl``.
+
+    Per frame: :meth:`set_params` (recorded), :meth:`submit` (GL: upload and draw, which
+    renders on the driver's threads; CPU: compute), :meth:`collect` (GL: wait, read back).
+    Between submit and collect the caller may prepare the next frame's parameters.
+    """
+
+    def __init__(
+        self,
+        backend: Backend,
+        model: RuntimeModel,
+        identity: bool,
+        ctx: Any,
+        precision: str = "float32",
+    ) -> None:
+        if backend not in ("gl", "cpu"):
+            raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
+        self.backend = backend
+        self.identity = identity
+        self.model = model  # what the GL side holds
+        self.next_model = model  # what the next submit uses
+        self.ctx = ctx
+        self.precision = precision
+        self.alpha, self.beta = 1.0, 0.0
+        self.eye = np.asarray(model.cam_eye, np.float32)
+        self.gl: Any = None
+        self._result: np.ndarray | None = None
+        if backend == "gl":
+            self._make_gl(model)
+
+    def _make_gl(self, model: RuntimeModel) -> None:
+        from viewcomp.rt.gl.compensator import Compensator  # GL only when asked for
+
+        if self.gl is not None:
+            self.gl.release()
+            self.gl = None
+        self.gl = Compensator(model, self.ctx, precision=self.precision)  # type: ignore[arg-type]
+        self.gl.identity = self.identity
+
+    def set_params(self, p: FrameParamsLike | None, eye: np.ndarray) -> None:
+        """The next frame's model, tone map (None: keep) and eye."""
+        if p is not None:
+            model = p.model
+            if model is not self.next_model and (
+                model.shape != self.model.shape or model.method != self.model.method
+            ):
+                raise ValueError(
+                    f"comp changed the grid or the method within one file: "
+                    f"{self.model.method} {self.model.shape} -> {model.method} {model.shape}"
+                )
+            self.next_model = model
+            self.alpha, self.beta = float(p.alpha), float(p.beta)
+        self.eye = np.asarray(eye, np.float32)
+
+    def submit(self, frame: np.ndarray | Planes) -> None:
+        """Start compensating one frame (RGB or yuv420p planes, on the grid)."""
+        model = self.next_model
+        if self.gl is None:
+            rgb = yuv420p_to_rgb(frame) if isinstance(frame, Planes) else frame
+            self.model = model
+            self._result = compensate(model, rgb, self.eye, self.alpha, self.beta, self.identity)
+            return
+        if model is not self.model:  # after the previous frame was read: no stall
+            if model.method == "paper":
+                self.gl.update_model(model.Wc_inv, model.inv_lut, model.inv_lo, model.inv_hi)
+            else:  # a new per-pixel model: new maps, new compensator (not expected)
+                self._make_gl(model)
+            self.model = model
+        self.gl.set_eye(*self.eye)
+        self.gl.set_tone(self.alpha, self.beta)
+        if isinstance(frame, Planes):
+            self.gl.upload_planes(frame)
+        else:
+            self.gl.upload(frame)
+        self.gl.draw()
+
+    def collect(self, out: np.ndarray | None = None) -> np.ndarray:
+        """The submitted frame's result (H, W, 3) uint8 (into ``out`` if given)."""
+        if self.gl is None:
+            res, self._result = self._result, None
+            if res is None:
+                raise RuntimeError("collect() without submit()")
+            if out is None:
+                return res
+            np.copyto(out, res)
+            return out
+        return self.gl.read(out)
+
+    def run(self, frame: np.ndarray | Planes, out: np.ndarray | None = None) -> np.ndarray:
+        """submit + collect."""
+        self.submit(frame)
+        return self.collect(out)
+
+    def release(self) -> None:
+        if self.gl is not None:
+            self.gl.release()
+            self.gl = None
+
+
+def _check_comp(comp: CompensationLike) -> RuntimeModel:
+    """The base model of ``comp``, checked against its declared grid and method."""
+    missing = [a for a in ("shape", "method", "base_model") if not hasattr(comp, a)]
+    if missing or not callable(comp):
+        raise TypeError(
+            "comp must be a viewcomp.calib.comp.compensation.Compensation (or act like one: "
+            "shape, method, base_model(), __call__(thumb, eye, t)); "
+            f"{type(comp).__name__} lacks {missing or ['__call__']}"
+        )
+    model = comp.base_model()
+    if not isinstance(model, RuntimeModel):
+        raise TypeError(f"comp.base_model() must return a RuntimeModel, got {type(model)}")
+    if tuple(model.shape) != tuple(comp.shape) or model.method != comp.method:
+        raise ValueError(
+            f"comp says {comp.method} on {tuple(comp.shape)} but its base model is "
+            f"{model.method} on {model.shape}"
+        )
+    return model
+
+
+def render_file(
+    comp: CompensationLike,
+    input_path: str | os.PathLike[str],
+    output_path: str | os.PathLike[str],
+    eye_track: EyeTrack,
+    backend: Backend = "gl",
+    identity: bool = False,
+    crf: float = 18,
+    codec: str = "libx264",
+    preset: str = DEFAULT_PRESET,
+    progress: bool = True,
+    ctx: Any = None,
+    precision: str = "float32",
+) -> RenderStats:
+    """Compensate an image or a video file for the projector (see the module docstring).
+
+    Args:
+        comp: the frame parameters (a ``Compensation`` for one calibration and method).
+        input_path: image (by extension, :data:`IMAGE_SUFFIXES`) or video.
+        output_path: ``.png`` for an image; a video container (``.mp4``, ``.mkv``) for video.
+        eye_track: ``t_seconds -> eye (3,)`` metres.
+        backend: ``"gl"`` (shader, default) or ``"cpu"`` (numpy reference).
+        identity: run the same pipeline with compensation off (``comp`` is not called).
+        crf, codec, preset: video encoder settings (H.264 via libx264, CRF 18, preset
+            ``veryfast`` by default; the preset applies to libx264/libx265).
+        progress: show a tqdm bar with frames per second (stderr).
+        ctx: an existing moderngl context for the GL backend (else one is made and freed).
+        precision: the GL pixel method's maps, ``"float32"`` (exact) or ``"packed"`` (20-bit,
+            ~25 % faster shader; see :class:`viewcomp.rt.gl.compensator.Compensator`).
+
+    Returns:
+        RenderStats (frames rendered, wall seconds, start-up, time in ``comp``).
+
+    Raises:
+        VideoError / ImageError: unreadable input or unwritable output (nothing left behind).
+        GLUnavailable: ``backend="gl"`` without a usable OpenGL 3.3 (EGL) driver.
+        ValueError / TypeError: ``comp`` is not usable (wrong kind, inconsistent model).
+    """
+    t_start = time.perf_counter()
+    if backend not in ("gl", "cpu"):
+        raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
+    if precision not in ("float32", "packed"):
+        raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
+    model = _check_comp(comp)
+    src, dst = Path(input_path), Path(output_path)
+    if is_image(src):
+        if dst.suffix.lower() != ".png":
+            raise ImageError(f"image output must be a .png file, got {dst}")
+        frame = _read_image(src, model.shape)
+        eye0 = np.asarray(eye_track(0.0), np.float32)
+        t_params = 0.0
+        eng = _Engine(backend, model, identity, ctx, precision)
+        try:
+            params = None
+            if not identity:
+                t = time.perf_counter()
+                params = comp(thumbnail(frame), eye0)
+                t_params = time.perf_counter() - t
+            eng.set_params(params, eye0)
+            out = eng.run(frame)
+        finally:
+            eng.release()
+        _write_png(dst, out)
+        seconds = time.perf_counter() - t_start
+        return RenderStats("image", 1, seconds, seconds, t_params)
+    return _render_video(comp, model, src, dst, eye_track, backend, identity, crf, codec,
+                         preset, progress, ctx, t_start, precision)  # fmt: skip
+
+
+def _render_video(
+    comp: CompensationLike,
+    model: RuntimeModel,
+    src: Path,
+    dst: Path,
+    eye_track: EyeTrack,
+    backend: Backend,
+    identity: bool,
+    crf: float,
+    codec: str,
+    preset: str,
+    progress: bool,
+    ctx: Any,
+    t_start: float,
+    precision: str,
+) -> RenderStats:
+    h, w = model.shape
+    clock = {"params": 0.0, "first": None}
+
+    with VideoReader(src, fit=(w, h)) as reader:
+        info = reader.info
+        eng = _Engine(backend, model, identity, ctx, precision)
+        try:
+            writer = VideoWriter(dst, w, h, info.rate, codec=codec, crf=crf,
+                                 colorspace=info.colorspace, audio=reader.audio_stream,
+                                 audio_start=info.start, preset=preset)  # fmt: skip
+            with EncodeThread(writer, (h, w, 3)) as enc:
+                reader.audio_mode = writer.audio_mode
+                bar = tqdm(total=info.frames, unit="frame", disable=not progress,
+                           desc=src.name, dynamic_ncols=True)  # fmt: skip
+                try:
+                    _video_loop(reader, comp, eng, enc, eye_track, identity, bar, clock, t_start)
+                finally:
+                    bar.close()
+            frames = enc.frames_written
+        finally:
+            eng.release()
+    seconds = time.perf_counter() - t_start
+    first = clock["first"]
+    return RenderStats("video", frames, seconds, first or seconds, clock["params"])  # type: ignore[arg-type]
+
+
+def _video_loop(
+    reader: VideoReader,
+    comp: CompensationLike,
+    eng: _Engine,
+    enc: EncodeThread,
+    eye_track: EyeTrack,
+    identity: bool,
+    bar: Any,
+    clock: dict[str, Any],
+    t_start: float,
+) -> None:
+    """Frames in order, one ahead: frame i renders while frame i+1's parameters are made.
+
+    Audio items that arrive while a frame is in flight are queued after it, so the encoder
+    sees everything in demux order.
+    """
+    in_flight: np.ndarray | None = None  # the buffer frame i is being rendered into
+    audio: list[AudioItem] = []
+
+    def deliver() -> None:
+        nonlocal in_flight
+        if in_flight is not None:
+            enc.put_frame(eng.collect(in_flight))
+            in_flight = None
+            if clock["first"] is None:
+                clock["first"] = time.perf_counter() - t_start
+            bar.update(1)
+        for a in audio:
+            enc.put_audio(a)
+        audio.clear()
+
+    for item in reader:
+        if isinstance(item, AudioItem):
+            if in_flight is None:
+                enc.put_audio(item)
+            else:
+                audio.append(item)
+            continue
+        eye = np.asarray(eye_track(item.time), np.float32)
+        params = None
+        if not identity:  # overlaps the previous frame's rendering
+            t = time.perf_counter()
+            params = comp(thumbnail_planes(item, THUMB_SIDE), eye, item.time)
+            clock["params"] += time.perf_counter() - t
+        buf = enc.buffer()
+        deliver()
+        eng.set_params(params, eye)
+        eng.submit(item)
+        in_flight = buf
+    deliver()
+
+
+def _read_image(path: Path, grid: tuple[int, int]) -> np.ndarray:
+    """Read an image as 8-bit RGB (H, W, 3) fitted to ``grid`` (H, W)."""
+    if not path.is_file():
+        raise ImageError(f"cannot read image {path}: no such file")
+    data = np.fromfile(path, np.uint8)
+    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ImageError(
+            f"cannot read image {path}: not a decodable image; fix: save it as PNG or JPEG"
+        )
+    rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    return fit_rgb(rgb, grid[1], grid[0])
+
+
+def _write_png(path: Path, rgb: np.ndarray) -> None:
+    """Write an 8-bit RGB PNG atomically (temporary file, then rename)."""
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise ImageError(f"cannot encode PNG for {path}")
+    tmp = temp_path_for(path)
+    try:
+        tmp.write_bytes(buf.tobytes())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise ImageError(f"cannot write image {path}: {exc}") from exc
