@@ -1,21 +1,19 @@
 """`viewcomp play` under a private Xvfb: playback, live input, fuzzing, CLI, embedding.
 
 Every test here starts and stops its own Xvfb (one per module). Without Xvfb they skip,
-except under VIEWCOMP_REQUIRE_GL=1, where they fail. Timing is printed, never asserted,
-except the input contract (a new angle shows within two presented frames; no main-loop
-stall over 100 ms while fuzzed).
+except under VIEWCOMP_REQUIRE_GL=1, where they fail. Timing is printed, never asserted
+(bench/bench_player_inputs.py measures the main loop's longest gap while fuzzed); the input
+contract is counted in presented frames (a new angle shows within two of them).
 """
 
 from __future__ import annotations
 
 import itertools
-import json
 import os
 import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -299,143 +297,27 @@ def test_keys_mouse_overlay_and_ab(display: str, cal: Any, clip: Path) -> None:
     assert stats.inputs["key"].applied == 2 and stats.inputs["mouse"].applied == 1
 
 
-_SENDER = r"""
-import json, math, os, random, socket, sys, time
-from pythonosc.osc_message_builder import OscMessageBuilder
-from pythonosc.osc_bundle_builder import OscBundleBuilder, IMMEDIATELY
-host, port, fd, n = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-rng = random.Random(1234)
-def msg(addr, args, types):
-    b = OscMessageBuilder(addr)
-    for a, t in zip(args, types):
-        b.add_arg(a, t)
-    return b.build()
-def valid_osc():
-    k = rng.randrange(5)
-    if k == 0: return msg("/viewcomp/angle", [rng.uniform(1, 179)], "f").dgram, 1, 0
-    if k == 1: return msg("/viewcomp/angle", [rng.randint(1, 179)], "i").dgram, 1, 0
-    if k == 2: return msg("/viewcomp/angle", [rng.uniform(1, 179)], "d").dgram, 1, 0
-    if k == 3:
-        e = [rng.uniform(-1, 1), rng.uniform(-.5, .5), rng.uniform(.1, 2)]
-        return msg("/viewcomp/eye", e, "fff").dgram, 1, 0
-    b = OscBundleBuilder(IMMEDIATELY)
-    b.add_content(msg("/viewcomp/angle", [rng.uniform(1, 179)], "f"))
-    b.add_content(msg("/viewcomp/angle", [500.0], "f"))
-    return b.build().dgram, 1, 1
-def invalid_osc():
-    k = rng.randrange(8)
-    if k == 0: return b"\x01" + os.urandom(rng.randrange(0, 200)), 0, 1
-    if k == 1:
-        a = rng.choice([0.0, 180.0, -5.0, 1e9, math.nan, math.inf])
-        return msg("/viewcomp/angle", [a], "f").dgram, 0, 1
-    if k == 2: return msg("/viewcomp/eye", [0.1, 0.2], "ff").dgram, 0, 1
-    if k == 3: return msg("/viewcomp/eye", [0.1, 0.2, -0.5], "fff").dgram, 0, 1
-    if k == 4: return msg("/viewcomp/angle", ["sixty"], "s").dgram, 0, 1
-    if k == 5: return msg("/viewcomp/tilt", [1.0], "f").dgram, 0, 1
-    if k == 6:
-        d = msg("/viewcomp/angle", [60.0], "f").dgram
-        return d[: len(d) - rng.randrange(1, 4)], 0, 1
-    return b"", 0, 1
-def valid_line():
-    k = rng.randrange(3)
-    if k == 0: return f"angle {rng.uniform(1, 179):.3f}\n".encode(), 1, 0
-    if k == 1:
-        x, y, z = rng.uniform(-1, 1), rng.uniform(-.5, .5), rng.uniform(.1, 2)
-        return f"EYE {x:.3f},{y:.3f},{z:.3f}\n".encode(), 1, 0
-    return f"  angle\t{rng.randint(1, 179)}  \n".encode(), 1, 0
-def invalid_line():
-    k = rng.randrange(7)
-    if k == 0:
-        junk = "".join(chr(rng.randrange(32, 127)) for _ in range(rng.randrange(0, 60)))
-        return ("?" + junk + "\n").encode(), 0, 1
-    if k == 1:
-        a = rng.choice(["0", "180", "-1", "nan", "inf", "1e400", "x"])
-        return f"angle {a}\n".encode(), 0, 1
-    if k == 2: return b"eye 1 2\n", 0, 1
-    if k == 3: return b"eye 0 0 -1\n", 0, 1
-    if k == 4: return b"a" * 1000 + b"\n", 0, 1
-    if k == 5: return b"\xff\xfe\xfd angle 60\n", 0, 1
-    return b"angle 10 20\n", 0, 1
-tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-count = {"osc": [0, 0], "stdin": [0, 0]}
-t0 = time.monotonic()
-for i in range(n):
-    if i % 2 == 0:
-        data, v, bad = (valid_osc if rng.random() < 0.4 else invalid_osc)()
-        tx.sendto(data, (host, port))
-        src = "osc"
-    else:
-        if rng.random() < 0.05:
-            os.write(fd, rng.choice([b"\n", b"# comment\n", b"   \n"]))
-        data, v, bad = (valid_line if rng.random() < 0.4 else invalid_line)()
-        os.write(fd, data)
-        src = "stdin"
-    count[src][0] += v
-    count[src][1] += bad
-    if i % 20 == 19:
-        time.sleep(0.004)
-print(json.dumps({"count": count, "seconds": time.monotonic() - t0}))
-"""
-
-
 @pytest.mark.gl
 def test_fuzzed_inputs_while_playing(display: str, cal: Any, clip: Path) -> None:
+    from viewcomp.rt.play.fuzzing import fuzz_player
     from viewcomp.rt.play.player import Player
 
     n = 10_000
-    r, w = os.pipe()
-    result: dict[str, Any] = {}
-
-    def drive(player: Any) -> None:
-        while player.osc_address is None:
-            time.sleep(0.01)
-        host, port = player.osc_address
-        proc = subprocess.run(
-            [sys.executable, "-c", _SENDER, host, str(port), str(w), str(n)],
-            pass_fds=(w,), capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
-        result["sender"] = proc
-        if proc.returncode == 0:
-            want = json.loads(proc.stdout)["count"]
-            result["want"] = want
-            end = time.monotonic() + 10.0
-            while time.monotonic() < end:  # every valid one applied, in bounded time
-                got = player.hub.snapshot()
-                if all(
-                    src in got and got[src].applied == want[src][0]
-                    and got[src].rejected == want[src][1] for src in want
-                ):  # fmt: skip
-                    result["settle_s"] = 10.0 - (end - time.monotonic())
-                    break
-                time.sleep(0.02)
-        time.sleep(0.3)  # a few more frames after the storm
-        player.stop()
-
-    opts = _options(osc=("127.0.0.1", 0), stdin_fd=r, loop=True, eye_tau=0.1, max_seconds=90)
-    player = Player(cal, [clip], opts)
-    driver = threading.Thread(target=drive, args=(player,), daemon=True)
-    driver.start()
-    try:
-        stats = player.run()
-    finally:
-        driver.join(timeout=30)
-        os.close(w)
-        os.close(r)
-    proc = result["sender"]
-    assert proc.returncode == 0, proc.stderr
-    want = result["want"]
+    opts = dict(osc=("127.0.0.1", 0), loop=True, eye_tau=0.1, max_seconds=180)
+    res = fuzz_player(lambda fd: Player(cal, [clip], _options(stdin_fd=fd, **opts)), n)
+    assert res.sender_returncode == 0, res.sender_stderr
+    want, stats = res.want, res.stats
     got = stats.inputs
-    print(f"\nsent {n} items in {json.loads(proc.stdout)['seconds']:.1f} s; expected "
+    print(f"\nsent {n} items in {res.sender_seconds:.1f} s; expected "
           f"{want}; got " + ", ".join(f"{k}: applied {v.applied} rejected {v.rejected}"
                                       for k, v in got.items())
-          + f"; settled {result.get('settle_s', float('nan')):.2f} s after the sender ended; "
+          + f"; settled {res.settle_s} s after the sender ended; "
           f"{stats.summary()}; longest main-loop gap {stats.max_loop_gap_ms:.0f} ms")  # fmt: skip
     for src, (valid, invalid) in want.items():
         assert got[src].applied == valid, src
         assert got[src].received == valid, src
         assert got[src].rejected == invalid, src
     assert stats.presented > 30
-    assert stats.max_loop_gap_ms < 100.0
 
 
 # ----------------------------------------------------------------------- command line
