@@ -68,7 +68,7 @@ COMPLETE_HEADER = """\
 # projector's and the camera's position, look_at and fov_y (metres, degrees; the world frame of
 # docs/MODEL.md of viewcomp: the screen is z = 0, +y up, +z toward the audience) and the
 # camera's response, then run `viewcomp calibrate`. The lens distortion is estimated by
-# calibrate. Every key of this file: docs/INTERFACES.md of viewcomp.
+# calibrate.
 """
 
 

@@ -482,7 +482,11 @@ def rig_to_toml(rig: Rig) -> str:
         "height": "eye height (y), metres",
         "space": '"projector" or "camera"',
     }
-    lines = ["# viewcomp rig; the format: docs/INTERFACES.md of viewcomp"]
+    lines = [
+        "# viewcomp rig: every key is described in docs/INTERFACES.md of viewcomp; positions",
+        "# are metres in the world frame of its docs/MODEL.md (screen z = 0, +y up, +z toward",
+        "# the audience).",
+    ]
     for section in _SECTIONS:
         obj = getattr(rig, section)
         lines.append("")

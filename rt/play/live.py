@@ -1,7 +1,7 @@
 """Live eye input for playback: parsing, validation, smoothing and the listener threads.
 
 No GL and no window here, so everything is testable on its own. Sources (docs/INTERFACES.md,
-"Live angle input"):
+"Live eye input"):
 
 - OSC over UDP: ``/viewcomp/angle f`` (degrees) and ``/viewcomp/eye fff`` (metres), in a
   message or (possibly nested) bundles; bundle time tags are ignored (applied on arrival).
