@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import re
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -179,3 +180,20 @@ def test_interfaces_documents_every_command_and_option():
         if actual - written:
             problems.append(f"{command}: accepted but not documented: {sorted(actual - written)}")
     assert not problems, "docs/INTERFACES.md and the command line differ:\n" + "\n".join(problems)
+
+
+def test_pyproject_lists_every_package():
+    """`pip install .` (docs/INTERFACES.md, Packaging) installs every sub-package: setuptools
+    installs only the packages listed in pyproject.toml."""
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    setup = meta["tool"]["setuptools"]
+    listed = set(setup["packages"])
+    found = set()
+    for name, folder in setup["package-dir"].items():
+        for init in (ROOT / folder).rglob("__init__.py"):
+            rel = init.parent.relative_to(ROOT / folder).parts
+            found.add(".".join((name, *rel)))
+    assert {"viewcomp.commands", "viewcomp.calib.world", "viewcomp.rt.gl"} <= found
+    assert found == listed, f"add to pyproject.toml packages: {sorted(found - listed)}; " + (
+        f"remove: {sorted(listed - found)}"
+    )
