@@ -255,7 +255,7 @@ def bench_pipeline_1080p(
     held = constant_angle(60, 0.5, 0.035)
     try:
         real: Any = _real_tone_comp(model)
-    except Exception as exc:  # the stand-in calibration no longer fits Compensation
+    except Exception as exc:  # a synthetic model that Compensation does not accept
         real = None
         real_error = f"{type(exc).__name__}: {exc}"
     res: dict[str, Any] = {

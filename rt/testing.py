@@ -2,8 +2,8 @@
 
 :class:`SyntheticCompensation` stands in for ``viewcomp.calib.comp.compensation.Compensation``
 (the duck-typed ``comp`` of :func:`viewcomp.rt.render.pipeline.render_file`) on a synthetic model
-of any size; :func:`make_compensation` gives a real one from the simulator when
-``viewcomp.calib.sim.testing.small_calibration`` exists, else the stand-in.
+of any size; :func:`make_compensation` gives a real one from a small simulated calibration
+(``viewcomp.calib.sim.testing.small_calibration``).
 
 The geometry is a flat screen z = 0 lit by a projector at (0, -0.03, 0.5) looking at the
 origin (vertical field of view 20 degrees); the calibration camera is at (0, 0.035, 0.5).
@@ -20,7 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.model.reference import Method, RuntimeModel
+from viewcomp.calib.sim.testing import small_calibration
 
 PROJECTOR = np.array([0.0, -0.03, 0.5])
 CAMERA = np.array([0.0, 0.035, 0.5])
@@ -283,17 +285,8 @@ class SyntheticCompensation:
 
 def make_compensation(
     method: str = "pixel", width: int = 64, height: int = 32, tau: float | None = None
-) -> Any:
-    """A real ``Compensation`` from the simulator (``viewcomp.calib.sim.testing``) if present.
-
-    Falls back to :class:`SyntheticCompensation` on :func:`synthetic_model` of that size
-    (eye-dependent for ``paper``) while ``small_calibration`` does not exist.
-    """
-    try:
-        from viewcomp.calib.sim.testing import small_calibration  # type: ignore[import-not-found]
-    except ImportError:
-        return SyntheticCompensation(synthetic_model(method, width, height),  # type: ignore[arg-type]
-                                     eye_dependent=True)  # fmt: skip
-    from viewcomp.calib.comp.compensation import Compensation
-
+) -> Compensation:
+    """A real ``Compensation`` of ``method`` on a simulated glossy magenta screen
+    (``viewcomp.calib.sim.testing.small_calibration``) at width x height, smoothed over
+    ``tau`` seconds."""
     return Compensation(small_calibration(w=width, h=height), method, tau=tau)

@@ -61,7 +61,7 @@ def test_per_pixel_compensation_closes_the_loop_where_reachable(world):
 
 
 def test_per_pixel_solve_is_the_limit_of_the_fixed_point_feedback(world):
-    """MODEL.md's feedback P <- Wc^-1 (T - A_c - ds Ww P), iterated where it converges,
+    """docs/MODEL.md's feedback P <- Wc^-1 (T - A_c - ds Ww P), iterated where it converges,
     ends where our one-step per-pixel solve starts."""
     _, _, _, _, cal = world
     m = cal.pixel.runtime_model()

@@ -1,4 +1,5 @@
-"""The paper's Section 5 in the simulator: the issue's criteria, at full size (slow)."""
+"""The paper's Section 5 in the simulator: Table 2's and the sweep's criteria, at full size
+(slow)."""
 
 import numpy as np
 import pytest

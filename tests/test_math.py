@@ -1,4 +1,4 @@
-"""Each math step against closed forms and round trips (MODEL.md sections 2-4)."""
+"""Each math step against closed forms and round trips (docs/MODEL.md sections 2-4)."""
 
 import numpy as np
 import pytest

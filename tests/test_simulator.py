@@ -1,4 +1,4 @@
-"""The simulator's physics (MODEL.md section 5)."""
+"""The simulator's physics (docs/MODEL.md section 5)."""
 
 import numpy as np
 import pytest

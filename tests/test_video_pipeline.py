@@ -58,7 +58,7 @@ def clip(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def clip5(tmp_path_factory) -> Path:
-    """The issue's clip: 5 seconds, 320x160 at 25 fps, a 440 Hz tone (AAC)."""
+    """A clip of 5 seconds, 320x160 at 25 fps, a 440 Hz tone (AAC)."""
     path = tmp_path_factory.mktemp("clip5") / "five.mp4"
     make_test_video(str(path), 320, 160, seconds=5.0, rate=25, audio=True)
     return path

@@ -1,4 +1,4 @@
-"""The paper's Section 5 in the simulator (MODEL.md section 5): table2, sweep, oracle.
+"""The paper's Section 5 in the simulator (docs/MODEL.md section 5): table2, sweep, oracle.
 
 What is compared, always: T_i is the test image projected on the ideal matte white screen
 and seen by the ideal eye (no noise, no vignetting, 8-bit) at the eye position of the row;
@@ -296,7 +296,8 @@ def sweep(
 
 
 def check_table2(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """The issue's table2 criteria, counted (not asserted): what holds in how many rows."""
+    """Table 2's criteria (docs/MODEL.md section 5), counted (not asserted): what holds in
+    how many rows."""
     at60 = [r for r in rows if r["seen_at"] == 60]
     at90 = [r for r in rows if r["seen_at"] == 90]
 
@@ -331,7 +332,8 @@ def sweep_means(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
 
 
 def check_sweep(means: dict[str, dict[str, float]]) -> dict[str, Any]:
-    """The issue's sweep criteria at every angle."""
+    """The sweep's criteria at every angle: pixel_theta at most paper_theta, and off 90
+    degrees pixel_theta at most both 90-degree compensations (docs/EVALUATION.md)."""
     ok1 = {a: m["pixel_theta"] <= m["paper_theta"] for a, m in means.items()}
     ok2 = {
         a: m["pixel_theta"] <= min(m["paper_90"], m["pixel_90"])

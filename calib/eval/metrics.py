@@ -1,4 +1,4 @@
-"""Image error measures for the evaluation (MODEL.md section 5).
+"""Image error measures for the evaluation (docs/MODEL.md section 5).
 
 Every function compares two 8-bit *encoded* RGB images (H, W, 3) uint8, 0..255, of one size:
 in the evaluation, ``a`` is a result seen from the eye (T_o, T_90, T_theta, ...) and ``b`` is

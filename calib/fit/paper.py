@@ -1,4 +1,4 @@
-"""The paper's method (MODEL.md section 2, steps 1-7), with the errata of section 3 applied.
+"""The paper's method (docs/MODEL.md section 2, steps 1-7), with the errata of section 3 applied.
 
 All images here are linearised captures on the projector grid: float (H, W, 3), linear
 camera units 0..1. Pattern names follow Table 1: ``red green blue gray ramp``.

@@ -1,4 +1,4 @@
-"""The per-pixel method (MODEL.md section 4).
+"""The per-pixel method (docs/MODEL.md section 4).
 
 Per pixel x and for each screen (white ``w``, real ``c``), Grossberg's model with a full 3x3
 colour-mixing matrix and ambient:

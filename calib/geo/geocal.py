@@ -1,7 +1,7 @@
 """Geometric calibration of a camera-space capture set: from camera frames to the projector grid.
 
 With ``[capture] space = "camera"`` the captures are raw camera frames (Hc, Wc, 3): the
-projector's frame is a distorted quadrilateral in them. Before any of MODEL.md's math, every
+projector's frame is a distorted quadrilateral in them. Before any of docs/MODEL.md's math, every
 capture is rectified onto the projector's pixel grid (H, W), as the paper does with Zhang's
 method and a chessboard:
 

@@ -66,8 +66,9 @@ TABLE1_ORDER = ("black", "gray", "red", "green", "blue", "ramp")
 COMPLETE_HEADER = """\
 # TO COMPLETE: `viewcomp capture` measured the resolutions only. Measure and enter the
 # projector's and the camera's position, look_at and fov_y (metres, degrees; the world frame of
-# docs/MODEL.md: the screen is z = 0, +y up, +z toward the audience) and the camera's response,
-# then run `viewcomp calibrate`. The lens distortion is estimated by calibrate.
+# docs/MODEL.md of viewcomp: the screen is z = 0, +y up, +z toward the audience) and the
+# camera's response, then run `viewcomp calibrate`. The lens distortion is estimated by
+# calibrate.
 """
 
 

@@ -1,7 +1,7 @@
 """Files of the calibration step: images, capture sets, patterns, checks, the bundle.
 
 - ``bundle``: The calibration bundle: one versioned zip file, readable without pickle.
-- ``captureset``: The capture set: a folder of calibration captures (INTERFACES.md).
+- ``captureset``: The capture set: a folder of calibration captures (docs/INTERFACES.md).
 - ``checks``: Checks of a capture set before any fit: saturation and darkness, with the fix
   named.
 - ``imageio``: Reading and writing capture images, and atomic file writes.

@@ -1,4 +1,4 @@
-"""The capture set: a folder of calibration captures (INTERFACES.md).
+"""The capture set: a folder of calibration captures (docs/INTERFACES.md).
 
 ```
 rig.toml

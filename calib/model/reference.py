@@ -150,7 +150,7 @@ def compensate(
     Args:
         model: the runtime model of one method, on an (H, W) projector grid.
         frame: (H, W, 3) uint8, encoded RGB 0..255, already at the projector's resolution.
-        eye: (3,) eye position in metres (world frame of MODEL.md).
+        eye: (3,) eye position in metres (world frame of docs/MODEL.md).
         alpha, beta: tone map C_c = alpha C_w + beta (Eq. 21), linear camera units.
         identity: pass the frame through unchanged (same quantisation path).
 

@@ -39,7 +39,7 @@ def simulate_capture_set(
     rig: Rig | None = None,
     black: bool = True,
 ) -> list[Path]:
-    """Write a capture set from the simulator (INTERFACES.md layout); returns the files.
+    """Write a capture set from the simulator (docs/INTERFACES.md layout); returns the files.
 
     Raises:
         SimulatorError: an unknown screen or gloss.

@@ -1,4 +1,4 @@
-"""A physical simulator of projector, screen and camera (MODEL.md section 5).
+"""A physical simulator of projector, screen and camera (docs/MODEL.md section 5).
 
 It stands in for hardware in tests, the demo and the evaluation. Everything is computed on
 the projector's pixel grid (the capture set's ``space = "projector"``): value (H, W, 3) at
@@ -301,6 +301,6 @@ SIM_PROJECTOR_FOV = 16.0
 
 
 def simulation_rig() -> Rig:
-    """The rig of the simulated world: INTERFACES.md's example with a 16-degree projector."""
+    """The rig of the simulated world: docs/INTERFACES.md's example with a 16-degree projector."""
     rig = default_rig()
     return replace(rig, projector=replace(rig.projector, fov_y=SIM_PROJECTOR_FOV))

@@ -1,8 +1,9 @@
 """The physical set-up: rig.toml, eye positions, screen geometry, camera responses.
 
-- ``eye``: Eye positions: a viewing angle is a shorthand for an eye position (MODEL.md section
-  1).
-- ``geometry``: Screen geometry on the projector's pixel grid (MODEL.md section 1).
+- ``eye``: Eye positions: a viewing angle is a shorthand for an eye position (docs/MODEL.md
+  section 1).
+- ``geometry``: Screen geometry on the projector's pixel grid (docs/MODEL.md section 1).
 - ``response``: Camera response curves: encoded pixel value <-> linear light.
-- ``rig``: The rig: projector, camera, viewer and capture settings of rig.toml (INTERFACES.md).
+- ``rig``: The rig: projector, camera, viewer and capture settings of rig.toml
+  (docs/INTERFACES.md).
 """

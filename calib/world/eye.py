@@ -1,4 +1,4 @@
-"""Eye positions: a viewing angle is a shorthand for an eye position (MODEL.md section 1).
+"""Eye positions: a viewing angle is a shorthand for an eye position (docs/MODEL.md section 1).
 
 The screen is the plane z = 0; the eye at angle theta is E = (d cos theta, h, d sin theta),
 theta = 90 straight in front, theta < 90 to the audience's right.

@@ -1,4 +1,4 @@
-"""Screen geometry on the projector's pixel grid (MODEL.md section 1).
+"""Screen geometry on the projector's pixel grid (docs/MODEL.md section 1).
 
 World units are metres; the screen is the plane z = 0 with normal N = (0, 0, 1); +x is the
 audience's right, +y up, +z toward the audience. Every per-pixel array here is (H, W, 3) on

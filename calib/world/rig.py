@@ -1,7 +1,7 @@
-"""The rig: projector, camera, viewer and capture settings of rig.toml (INTERFACES.md).
+"""The rig: projector, camera, viewer and capture settings of rig.toml (docs/INTERFACES.md).
 
-World frame (MODEL.md): metres, the screen is the plane z = 0, +x is the audience's right,
-+y is up, +z points from the screen toward the audience.
+World frame (docs/MODEL.md section 1): metres, the screen is the plane z = 0, +x is the
+audience's right, +y is up, +z points from the screen toward the audience.
 
 Devices are pinholes with OpenCV conventions: the device looks along its own +z, image x
 points right and image y points down; pixel centres sit at integer coordinates, so the
@@ -191,7 +191,7 @@ class Viewer:
     height: float | None = None
 
     def eye(self, angle_deg: float) -> np.ndarray:
-        """Eye position (3,) float64 for viewing angle theta (degrees), MODEL.md section 1:
+        """Eye position (3,) float64 for viewing angle theta (degrees), docs/MODEL.md section 1:
         E = (d cos theta, h, d sin theta); 90 is straight in front, < 90 the audience's right.
         """
         if self.height is None:
@@ -226,7 +226,7 @@ class Rig:
 
 
 def default_rig() -> Rig:
-    """The example rig of INTERFACES.md (projector 640x320, camera 1280x720, sRGB)."""
+    """The example rig of docs/INTERFACES.md (projector 640x320, camera 1280x720, sRGB)."""
     return Rig(
         projector=Device(
             resolution=(640, 320),
@@ -431,7 +431,7 @@ def load_rig(path: str | Path) -> Rig:
     except FileNotFoundError:
         raise RigError(
             f"{p}: not found - a rig.toml describes projector, camera and viewer "
-            "(see INTERFACES.md; `viewcomp simulate` writes an example)"
+            "(see docs/INTERFACES.md of viewcomp; `viewcomp simulate` writes an example)"
         ) from None
     except IsADirectoryError:
         raise RigError(f"{p}: is a folder, expected a rig.toml file") from None
@@ -482,7 +482,11 @@ def rig_to_toml(rig: Rig) -> str:
         "height": "eye height (y), metres",
         "space": '"projector" or "camera"',
     }
-    lines = ["# viewcomp rig (INTERFACES.md)"]
+    lines = [
+        "# viewcomp rig: every key is described in docs/INTERFACES.md of viewcomp; positions",
+        "# are metres in the world frame of its docs/MODEL.md (screen z = 0, +y up, +z toward",
+        "# the audience).",
+    ]
     for section in _SECTIONS:
         obj = getattr(rig, section)
         lines.append("")

@@ -588,7 +588,7 @@ class Compensator:
         self._identity = bool(on)
 
     def set_eye(self, x: float, y: float, z: float) -> None:
-        """Eye position in metres (world frame of MODEL.md)."""
+        """Eye position in metres (world frame of docs/MODEL.md)."""
         eye = np.array([x, y, z], np.float32)
         if not np.all(np.isfinite(eye)):
             raise ValueError(f"the eye must be three finite numbers, got {(x, y, z)}")

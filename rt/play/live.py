@@ -1,7 +1,7 @@
 """Live eye input for playback: parsing, validation, smoothing and the listener threads.
 
-No GL and no window here, so everything is testable on its own. Sources (INTERFACES.md,
-"Live angle input"):
+No GL and no window here, so everything is testable on its own. Sources (docs/INTERFACES.md,
+"Live eye input"):
 
 - OSC over UDP: ``/viewcomp/angle f`` (degrees) and ``/viewcomp/eye fff`` (metres), in a
   message or (possibly nested) bundles; bundle time tags are ignored (applied on arrival).
@@ -17,7 +17,7 @@ jumps, the eye follows it with an exponential time constant so the picture never
 
 Conventions: an angle is in degrees, 90 = straight in front, < 90 the audience's right;
 the eye for an angle is E = (d cos t, h, d sin t) with the rig's viewer distance d and
-height h (metres, world frame of MODEL.md, screen at z = 0).
+height h (metres, world frame of docs/MODEL.md, screen at z = 0).
 """
 
 from __future__ import annotations

@@ -7,14 +7,14 @@ One function, :func:`render_file`, for both backends and for images and videos::
         -> compensate (GL Compensator, or viewcomp.calib.model.reference.compensate)
         -> encode (PNG, or PyAV video on its own thread, audio carried over)
 
-Interfaces decided here (for the CLI wiring):
+Interfaces:
 
 - ``comp``: the frame parameters, duck-typed like
   :class:`viewcomp.calib.comp.compensation.Compensation`: ``shape`` (H, W), ``method``
   (``"pixel"``/``"paper"``), ``base_model()`` (a model of the right method and grid, used to
   set the GL side up) and ``comp(thumb, eye, t) -> FrameParams`` with ``model``, ``alpha``,
-  ``beta``, called once per frame in order (it may smooth over time: the lead builds it with
-  ``tau`` for video). For ``paper`` the model changes with the eye; the GL backend
+  ``beta``, called once per frame in order (it may smooth over time: ``viewcomp render`` builds
+  it with ``tau`` for video). For ``paper`` the model changes with the eye; the GL backend
   re-uploads its ``Wc_inv``/``inv_lut``/``inv_lo``/``inv_hi`` only when ``p.model is not``
   the previous one (Compensation caches models). Grid and method stay fixed per file.
 - ``eye_track``: callable ``t_seconds -> eye (3,)`` metres; see :mod:`viewcomp.rt.render.tracks`.

@@ -1,7 +1,7 @@
 """Eye tracks: where the viewer is at time t, as a callable ``t_seconds -> eye (3,)``.
 
 A track is any callable returning the eye position (3,) float32 in metres (world frame of
-MODEL.md) for a presentation time in seconds. Angles use E = (d cos t, h, d sin t).
+docs/MODEL.md) for a presentation time in seconds. Angles use E = (d cos t, h, d sin t).
 """
 
 from __future__ import annotations
