@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import (
     OPTIONAL,
     REQUIRED,
@@ -19,7 +20,6 @@ from viewcomp.calib.io.captureset import (
 )
 from viewcomp.calib.io.imageio import (
     CaptureError,
-    atomic_open,
     read_image,
     to_linear,
     write_npy,
@@ -48,7 +48,7 @@ def _images(seed: int, dtype: type = np.uint8, names: tuple[str, ...] = REQUIRED
 
 
 def _no_temp_files(folder: Path) -> bool:
-    return not [p for p in folder.rglob("*") if p.name.endswith(".tmp")]
+    return not [p for p in folder.rglob("*") if p.name.startswith(".")]
 
 
 # --- imageio --------------------------------------------------------------------------------

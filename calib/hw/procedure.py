@@ -37,9 +37,10 @@ import numpy as np
 
 from viewcomp.calib.geo.geocal import MIN_PEAK, MOVE_LIMIT_PX, find_corners, frame_shift
 from viewcomp.calib.hw.devices import Camera, Projector
+from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import DARK_LIMIT, SATURATION_LIMIT, check_captures
-from viewcomp.calib.io.imageio import CaptureError, atomic_open
+from viewcomp.calib.io.imageio import CaptureError, to_linear
 from viewcomp.calib.io.patterns import table1_patterns
 from viewcomp.calib.sim.simcamera import geometric_patterns
 from viewcomp.calib.world.response import Response, parse_response
@@ -140,8 +141,7 @@ class LiveChecks:
 
     def linear(self, raw: np.ndarray) -> np.ndarray:
         """(H, W, 3) codes -> float32 linear 0..1."""
-        top = 255.0 if raw.dtype == np.uint8 else 65535.0
-        return self.response.decode(raw.astype(np.float32) / np.float32(top))
+        return to_linear(raw, self.response)
 
     def check(self, sub: str, name: str, raw: np.ndarray) -> None:
         """Check one capture; raises CaptureError naming it and the fix."""

@@ -150,9 +150,10 @@ def _write_frames(path: Path, frames: list, rate: int, tone: bool = False) -> No
     import av
     import numpy as np
 
+    from viewcomp.calib.io.atomic import atomic_path
+
     h, w = frames[0].shape[:2]
-    tmp = path.with_name(path.name + ".part")
-    with av.open(str(tmp), "w", format="mp4") as c:
+    with atomic_path(path) as tmp, av.open(str(tmp), "w", format="mp4") as c:
         vs = c.add_stream("libx264", rate=rate)
         vs.width, vs.height, vs.pix_fmt = w - w % 2, h - h % 2, "yuv420p"
         vs.options = {"preset": "veryfast", "crf": "18"}
@@ -173,7 +174,6 @@ def _write_frames(path: Path, frames: list, rate: int, tone: bool = False) -> No
                 af.sample_rate = 48000
                 c.mux(aus.encode(af))
             c.mux(aus.encode(None))
-    tmp.replace(path)
 
 
 def _read_clip(path: Path) -> tuple[list, list]:

@@ -45,8 +45,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
     from viewcomp.calib.fit.calibrate import Calibration
+    from viewcomp.calib.io.atomic import write_text_atomic
+    from viewcomp.calib.io.imageio import read_rgb8
     from viewcomp.cli import UsageError
-    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, read_image, write_text_atomic
+    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader
+    from viewcomp.rt.media.frames import fit_rgb
 
     if (args.alpha is None) != (args.beta is None):
         raise UsageError("give both --alpha and --beta, or neither")
@@ -54,7 +57,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--tone-from and --alpha/--beta both set the tone map; give one")
     cal = Calibration.load(args.calib)
     try:
-        sample = read_image(args.tone_from, cal.shape) if args.tone_from else None
+        sample = None
+        if args.tone_from:  # fitted to the grid as render fits it
+            h, w = cal.shape
+            sample = fit_rgb(read_rgb8(args.tone_from), w, h)
         text, info = export_mpv_shader(
             cal,
             method=args.method,
@@ -70,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     except ExportError as exc:
         raise UsageError(str(exc)) from None
     try:
-        write_text_atomic(args.output, text)
+        write_text_atomic(args.output, text, encoding="ascii")
     except OSError as exc:
         raise UsageError(f"cannot write {args.output}: {exc}") from None
     w, h = info.grid
