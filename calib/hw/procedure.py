@@ -18,7 +18,7 @@ prompt to put it in place; then ``screen/`` on the real screen (the same, plus t
 of OpenCV structured_light). Each stage ends with a second gray capture, compared with its
 first (the camera moved during the stage). Before anything is written, the whole set goes
 through the geometric calibration that `viewcomp calibrate` will run
-(:func:`viewcomp.calib.geo.geocal.rectify_capture_set`) and its saturation and darkness checks:
+(:func:`viewcomp.calib.geo.rectify.rectify_capture_set`) and its saturation and darkness checks:
 a set that is written calibrates. A refused capture raises
 :class:`~viewcomp.calib.io.imageio.CaptureError` (or ``FitError``) and nothing is written.
 
@@ -35,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.geo.geocal import MIN_PEAK, MOVE_LIMIT_PX, find_corners, frame_shift
+from viewcomp.calib.geo.checks import MIN_PEAK, MOVE_LIMIT_PX, frame_shift
+from viewcomp.calib.geo.chessboard import find_corners
 from viewcomp.calib.hw.devices import Camera, Projector
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
@@ -276,14 +277,15 @@ def run_capture(
         sleep: the waiting function (tests pass a no-op).
         response: the camera's response to write: None keeps the template's (sRGB without
             one), ``"estimate"`` estimates it from the Gray-code captures (light adds up:
-            :func:`viewcomp.calib.geo.geocal.estimate_response`), otherwise a rig.toml value.
+            :func:`viewcomp.calib.geo.camresponse.estimate_response`), otherwise a rig.toml value.
 
     Raises:
         CaptureError: a capture is refused (the message names it and the fix), the user
             stopped, or the folder cannot hold a capture set. Nothing is written then.
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
-    from viewcomp.calib.geo.geocal import estimate_set_response, rectify_capture_set
+    from viewcomp.calib.geo.camresponse import estimate_set_response
+    from viewcomp.calib.geo.rectify import rectify_capture_set
 
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
