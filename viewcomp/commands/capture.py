@@ -204,8 +204,5 @@ def _list_monitors() -> int:
         print("GLFW sees no monitor", file=sys.stderr)
         return 1
     for m in mons:
-        print(
-            f"{m['index']}: {m['name']}  {m['width']}x{m['height']} @ {m['refresh_hz']} Hz  "
-            f"at {m['position'][0]},{m['position'][1]}"
-        )
+        print(m)
     return 0
