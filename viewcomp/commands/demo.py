@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from viewcomp.commands._common import add_simulator_arguments
+
 DEMO_ANGLES = (45, 60, 90, 120, 135)
 
 
@@ -20,8 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "back, and what that viewer sees is written as a video.",
     )
     p.add_argument("--out", default="viewcomp-demo", help="output folder (default ./viewcomp-demo)")
-    p.add_argument("--screen", default="magenta", help="simulated screen colour (default magenta)")
-    p.add_argument("--seed", type=int, default=0)
+    add_simulator_arguments(p, gloss=False, size=None)
     p.add_argument("--no-video", action="store_true", help="only the still pictures")
     p.set_defaults(run=run)
 
@@ -38,22 +39,23 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.imageio import write_png
     from viewcomp.calib.sim.simulate import simulate_capture_set
     from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import Log
+    from viewcomp.commands._common import Log, screen_colour
 
     log = Log()
     out = Path(args.out)
     caps = out / "captures"
+    colour = screen_colour(args.screen)
     log(f"simulating a glossy {args.screen} screen: capture set in {caps}")
-    simulate_capture_set(caps, args.screen, "glossy", seed=args.seed)
+    simulate_capture_set(caps, colour, "glossy", seed=args.seed)
     log("calibrating both methods")
     cal = calibrate(read_capture_set(caps))
-    bundle = out / f"{args.screen}.vcb"
+    bundle = out / f"{args.screen if isinstance(colour, str) else 'screen'}.vcb"
     cal.save(bundle)
     cal = Calibration.load(bundle)
     log(f"wrote the calibration bundle {bundle}")
 
     sim = Simulator(rig=simulation_rig(), seed=args.seed)
-    screen = make_screen(args.screen, "glossy", shape=sim.shape, seed=args.seed)
+    screen = make_screen(colour, "glossy", shape=sim.shape, seed=args.seed)
     h, w = sim.shape
     images = dict(list(natural_images(w, h).items())[:2])
     comps = {m: Compensation(cal, m) for m in ("paper", "pixel")}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from viewcomp.commands._common import parse_vec3
+from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,16 +22,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("-o", "--output", required=True, help="the shader file to write (.glsl)")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--angle", type=float, default=None,
-                       help="viewing angle in degrees (default 90; with --param the default "
-                       "of the parameter)")  # fmt: skip
-    where.add_argument("--eye", help="eye position X,Y,Z in metres instead of an angle")
+    add_eye_arguments(p, angle_note="; default 90, with --param the parameter's default")
     p.add_argument("--param", action="store_true",
                    help="make the angle a //!PARAM (pixel method, vo=gpu-next)")  # fmt: skip
-    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
-    p.add_argument("--lambda", dest="lam", type=float, default=None,
-                   help="tone-map brightness weight (Eq. 22), default 1")  # fmt: skip
+    add_tone_arguments(p, smooth=False)
     p.add_argument("--tone-from", metavar="IMAGE",
                    help="choose the tone map for this image (a typical frame)")  # fmt: skip
     p.add_argument("--alpha", type=float, default=None, help="bake this tone-map alpha")
