@@ -102,6 +102,7 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     import numpy as np
 
     from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.sim.simulator import white_screen
     from viewcomp.rt.gl.context import GLUnavailable
     from viewcomp.rt.render.pipeline import render_file
@@ -109,7 +110,8 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
 
     clip, track_csv = out / "clip.mp4", out / "walk.csv"
     _write_clip(clip, list(images.values()), seconds=4.0, rate=25)
-    track_csv.write_text("# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n")
+    walk = "# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n"
+    write_text_atomic(track_csv, walk)
     v = cal.rig.viewer
     track = load_angle_track(track_csv, v.distance, v.height)
     comp_clip = out / "clip-compensated.mp4"
