@@ -26,7 +26,8 @@ class GrayCode:
     """The decoded Gray code: per camera pixel (Hc, Wc) the projector ``column`` and ``row``
     (int32, -1 where not decoded), ``lit`` (bool: the projector lights the pixel), the
     per-plane ``bits`` (n_planes // 2, Hc, Wc) bool and ``reliable`` (same shape, bool), and
-    ``response_samples``: pixels on a blurred stripe edge, for :func:`estimate_response`."""
+    ``response_samples``: pixels on a blurred stripe edge, for
+    :func:`~viewcomp.calib.geo.camresponse.estimate_response`."""
 
     column: np.ndarray
     row: np.ndarray

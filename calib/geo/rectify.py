@@ -25,20 +25,20 @@ method and a chessboard:
 4. **Rectification**: ``cv2.remap`` (bilinear) of every Table-1 capture through the map gives
    float32 (H, W, 3) linear images on the projector grid, as a ``space = "projector"`` set;
    the frame's outermost ring of pixels, seen half against the unlit surround, copies its
-   inner neighbours (:func:`fill_border`).
+   inner neighbours (:func:`~viewcomp.calib.geo.projmap.fill_border`).
 
 The camera's response comes from rig.toml. It is checked against the captures: light adds
 up, so a Gray-code plane and its inverse, linearised, must sum to white + black even where
-the optics blur a stripe edge to an intermediate value; :func:`estimate_response` finds the
-response ("linear", "srgb" or a power law) that makes them do so, and a rig response that
-misfits grossly is refused with the estimate in the message.
+the optics blur a stripe edge to an intermediate value; :mod:`~viewcomp.calib.geo.camresponse`
+finds the response ("linear", "srgb" or a power law) that makes them do so, and a rig
+response that misfits grossly is refused with the estimate in the message.
 
 Refusals (:class:`~viewcomp.calib.errors.FitError`, naming the capture and the fix): no
 chessboard; Gray code missing, out of order or not covering the projector image; Table-1
 captures in the wrong order (or one as dark as black); a saturated chessboard; the camera
 moved between captures (the projector frame's edges or the chessboard corners shift by more
-than :data:`MOVE_LIMIT_PX`); the projector image not wholly in the camera's view; a wrong
-camera response.
+than :data:`~viewcomp.calib.geo.checks.MOVE_LIMIT_PX`); the projector image not wholly in the
+camera's view; a wrong camera response.
 
 Units: camera and projector coordinates are pixels, (x right, y down), pixel centres at
 integers; image arrays are indexed ``[row, column]``.
