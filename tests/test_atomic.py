@@ -144,3 +144,22 @@ def test_the_file_and_its_folder_are_synced(
     monkeypatch.setattr(os, "fsync", spy)
     write_bytes_atomic(tmp_path / "x.bin", b"x")
     assert synced == ["file", "dir"]
+
+
+@pytest.mark.parametrize("fail", [False, True])
+def test_the_demo_clip_writer_is_atomic(tmp_path: Path, fail: bool) -> None:
+    """The demo's video writer goes through atomic_path: a failure mid-encode leaves no
+    partial file (it used to leave a `.part` file behind)."""
+    import numpy as np
+
+    from viewcomp.commands.demo import _write_frames
+
+    frames: list = [np.zeros((16, 16, 3), np.uint8) for _ in range(3)]
+    if fail:
+        frames.append(np.zeros((16, 16), np.float32))  # PyAV refuses it mid-stream
+        with pytest.raises((ValueError, TypeError)):
+            _write_frames(tmp_path / "clip.mp4", frames, 25)
+        assert _names(tmp_path) == []
+    else:
+        _write_frames(tmp_path / "clip.mp4", frames, 25, tone=True)
+        assert _names(tmp_path) == ["clip.mp4"] and (tmp_path / "clip.mp4").stat().st_size > 0
