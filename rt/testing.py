@@ -23,6 +23,7 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.model.reference import Method, RuntimeModel
 from viewcomp.calib.sim.testing import small_calibration
+from viewcomp.calib.world.geometry import meet_screen
 
 PROJECTOR = np.array([0.0, -0.03, 0.5])
 CAMERA = np.array([0.0, 0.035, 0.5])
@@ -45,8 +46,7 @@ def planar_geometry(
     v = (np.arange(height) + 0.5 - height / 2.0) / f
     d = fwd + u[None, :, None] * right - v[:, None, None] * up
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    t = -PROJECTOR[2] / d[..., 2]
-    pos = PROJECTOR + t[..., None] * d
+    pos = meet_screen(PROJECTOR, d, "projector")
     refl = d.copy()
     refl[..., 2] = -refl[..., 2]  # mirror about the normal (0, 0, 1)
     return refl.astype(np.float32), pos.astype(np.float32)

@@ -27,6 +27,55 @@ def test_help_of_every_command(capsys):
         assert "usage: viewcomp" in capsys.readouterr().out
 
 
+def test_shared_options_mean_the_same_everywhere(capsys):
+    """--angle/--eye, the tone map and the simulator's options are declared once: the same
+    type, default and help in every command that takes them (the angle's default and note
+    aside); calibrate's blur is --mixing-blur-px."""
+    import argparse
+
+    from viewcomp.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    options = {
+        name: {o: act for act in cmd._actions for o in act.option_strings}
+        for name, cmd in sub.choices.items()
+    }
+    takes = {
+        "--eye": ("render", "play", "export-mpv"),
+        "--angle": ("render", "play", "export-mpv"),
+        "--method": ("render", "play", "export-mpv"),
+        "--lambda": ("render", "play", "export-mpv"),
+        "--smooth": ("render", "play"),
+        "--screen": ("simulate", "capture", "demo"),
+        "--gloss": ("simulate", "capture"),
+        "--seed": ("simulate", "capture", "demo", "evaluate"),
+        "--space": ("simulate", "evaluate"),
+    }
+    for flag, names in takes.items():
+        seen = set()
+        for name in names:
+            act = options[name][flag]
+            text = act.help.split(";")[0].rstrip(")") if flag == "--angle" else act.help
+            default = None if flag == "--angle" else act.default
+            seen.add((act.type, default, act.metavar, act.dest, text, tuple(act.choices or ())))
+        assert len(seen) == 1, (flag, seen)
+    assert options["simulate"]["--size"].help == options["capture"]["--sim-size"].help
+    helps = {}
+    for name in ("calibrate",):
+        with pytest.raises(SystemExit):
+            main([name, "--help"])
+        helps[name] = capsys.readouterr().out
+    assert "--mixing-blur-px PX" in helps["calibrate"] and "--smooth" not in helps["calibrate"]
+    with pytest.raises(SystemExit) as e:
+        main(["calibrate", "caps", "-o", "x.vcb", "--smooth", "3"])
+    assert e.value.code == 2
+    for bad in ("nan", "-1"):
+        with pytest.raises(SystemExit) as e:
+            main(["calibrate", "caps", "-o", "x.vcb", "--mixing-blur-px", bad])
+        assert e.value.code == 2
+    assert "finite number >= 0" in capsys.readouterr().err
+
+
 def test_patterns_writes_table1(tmp_path):
     assert main(["patterns", str(tmp_path), "--size", "64x32"]) == 0
     ramp = read_image(tmp_path / "ramp.png")

@@ -15,15 +15,9 @@ from viewcomp.calib.eval.evaluate import World as EvalWorld
 from viewcomp.calib.eval.evaluate import check_table2, sweep, sweep_means, table2
 from viewcomp.calib.eval.testimages import natural_images
 from viewcomp.calib.fit.calibrate import calibrate
-from viewcomp.calib.geo.geocal import (
-    BORDER_PX,
-    calibrate_geometry,
-    distort_normalised,
-    estimate_response,
-    estimate_set_response,
-    rectify,
-    rectify_capture_set,
-)
+from viewcomp.calib.geo.camresponse import estimate_response, estimate_set_response
+from viewcomp.calib.geo.projmap import rectify
+from viewcomp.calib.geo.rectify import BORDER_PX, calibrate_geometry, rectify_capture_set
 from viewcomp.calib.io.captureset import capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.imageio import to_linear
 from viewcomp.calib.io.patterns import chessboard
@@ -42,6 +36,7 @@ from viewcomp.calib.sim.simulator import (
     simulation_rig,
     white_screen,
 )
+from viewcomp.calib.world.lens import distort_normalised
 from viewcomp.calib.world.rig import Rig
 from viewcomp.cli import main
 

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import (
     OPTIONAL,
     REQUIRED,
@@ -19,8 +20,8 @@ from viewcomp.calib.io.captureset import (
 )
 from viewcomp.calib.io.imageio import (
     CaptureError,
-    atomic_open,
     read_image,
+    read_rgb8,
     to_linear,
     write_npy,
     write_png,
@@ -48,7 +49,7 @@ def _images(seed: int, dtype: type = np.uint8, names: tuple[str, ...] = REQUIRED
 
 
 def _no_temp_files(folder: Path) -> bool:
-    return not [p for p in folder.rglob("*") if p.name.endswith(".tmp")]
+    return not [p for p in folder.rglob("*") if p.name.startswith(".")]
 
 
 # --- imageio --------------------------------------------------------------------------------
@@ -120,6 +121,35 @@ def test_read_errors(tmp_path: Path) -> None:
     np.save(tmp_path / "o.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     with pytest.raises(CaptureError, match="cannot decode"):
         read_image(tmp_path / "o.npy")
+
+
+def test_read_rgb8_reads_content_images_as_8_bit_rgb(tmp_path: Path) -> None:
+    img = np.zeros((H, W, 3), np.uint8)
+    img[..., 0] = 200  # red
+    cv2.imwrite(str(tmp_path / "a.jpg"), img[..., ::-1])
+    got = read_rgb8(tmp_path / "a.jpg")
+    assert got.dtype == np.uint8 and got.shape == (H, W, 3)
+    assert abs(int(got[..., 0].mean()) - 200) <= 2 and got[..., 2].max() <= 5
+    cv2.imwrite(str(tmp_path / "b.png"), np.full((H, W), 40000, np.uint16))  # 16-bit gray
+    got = read_rgb8(tmp_path / "b.png")
+    assert got.dtype == np.uint8 and got.shape == (H, W, 3) and np.all(got == 40000 >> 8)
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "folder.png").mkdir()
+    for name, phrase in (("missing.png", "not found"), ("empty.png", "empty"),
+                         ("folder.png", "not a file")):  # fmt: skip
+        with pytest.raises(CaptureError, match=phrase):
+            read_rgb8(tmp_path / name)
+        with pytest.raises(CaptureError, match=phrase):
+            read_image(tmp_path / name)
+
+
+def test_to_linear_looks_up_exactly_what_decoding_computes() -> None:
+    resp = parse_response("srgb")
+    for dtype in (np.uint8, np.uint16):
+        top = np.iinfo(dtype).max
+        raw = np.random.default_rng(1).integers(0, top, (H, W, 3), endpoint=True).astype(dtype)
+        direct = resp.decode(raw.astype(np.float32) / np.float32(top))
+        assert np.array_equal(to_linear(raw, resp), direct)
 
 
 def test_write_refusals(tmp_path: Path) -> None:

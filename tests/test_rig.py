@@ -156,6 +156,28 @@ def test_pixel_rays_on_a_resampled_grid() -> None:
     assert dev.pixel_rays(32, 64) == pytest.approx(dev.pixel_rays())
 
 
+def test_one_ray_plane_intersection_for_grids_and_points() -> None:
+    from viewcomp.calib.world.geometry import (
+        GeometryError,
+        meet_screen,
+        screen_points,
+        screen_points_at,
+    )
+
+    dev = replace(default_rig().projector, resolution=(64, 32))
+    grid = screen_points(dev)
+    vv, uu = np.mgrid[0:32, 0:64]
+    at = screen_points_at(dev, np.stack([uu, vv], -1).astype(float))
+    assert np.abs(at - grid).max() < 1e-12 and np.all(grid[..., 2] == 0.0)
+    # each point lies on its pixel's ray: it projects back to the pixel
+    assert dev.project(at) == pytest.approx(np.stack([uu, vv], -1), abs=1e-6)
+    origin = np.array([0.0, 0.0, 1.0])
+    with pytest.raises(GeometryError, match=r"camera pixels miss .*\[camera\] position"):
+        meet_screen(origin, np.array([[0.0, 0.0, 1.0]]), "camera")  # away from the screen
+    with pytest.raises(GeometryError, match="projector"):
+        meet_screen(origin, np.array([[1.0, 0.0, 0.0]]), "projector")  # parallel to it
+
+
 def test_dataclass_defaults() -> None:
     cam = Camera(
         resolution=(4, 2),

@@ -8,17 +8,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from viewcomp.calib.io.imageio import atomic_open, write_png
+from viewcomp.calib.io.atomic import atomic_open, write_text_atomic
+from viewcomp.calib.io.imageio import to_linear, write_png
 
 if TYPE_CHECKING:
     from viewcomp.calib.eval.evaluate import World
 
 COLUMNS = ("original", "paper_90", "paper_theta", "pixel_90", "pixel_theta", "oracle")
-
-
-def _write_text(path: Path, text: str) -> None:
-    with atomic_open(path) as f:
-        f.write(text.encode("utf-8"))
 
 
 def _plt():
@@ -31,12 +27,8 @@ def _plt():
 
 
 def _save(fig: Any, path: Path) -> None:
-    import io
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     with atomic_open(path) as f:
-        f.write(buf.getvalue())
+        fig.savefig(f, format="png", dpi=110, bbox_inches="tight")
 
 
 def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, Any]:
@@ -54,11 +46,10 @@ def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, A
     case = world.case(screen)
     g = case.cal.paper.geometry
     rv = g.rv(g.camera)
-    dec = world.sim.response.decode
 
     def lin(scr: Any) -> dict[str, np.ndarray]:
         raw = capture_patterns(world.sim, scr)
-        return {k: dec(raw[k].astype(np.float32) / 255.0).astype(np.float64) for k in raw}
+        return {k: to_linear(raw[k], world.sim.response).astype(np.float64) for k in raw}
 
     c, w = lin(case.screen), lin(white_screen())
     s = (c["gray"] - c["black"]) / np.maximum(w["gray"] - w["black"], 1e-6)
@@ -244,5 +235,5 @@ def write_report(out: Path, report: dict[str, Any], world: World, keep: dict[str
     report["tone_tradeoff"] = plot_tradeoff(world, out / "tonemap_tradeoff.png")
     md += ["## Tone map trade-off", "", "![](tonemap_tradeoff.png)", ""]
     md += [f"Run time: {report['seconds']} s.", ""]
-    _write_text(out / "report.json", dumps(report))
-    _write_text(out / "report.md", "\n".join(md))
+    write_text_atomic(out / "report.json", dumps(report))
+    write_text_atomic(out / "report.md", "\n".join(md))

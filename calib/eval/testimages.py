@@ -17,6 +17,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from viewcomp.calib.io.imageio import CaptureError, read_rgb8
+
 PHOTOS = ("astronaut", "coffee", "chelsea")
 # Vertical crop position (0 top, 0.5 centre, 1 bottom): the astronaut's face is near the top.
 _ANCHOR_Y = {"astronaut": 0.2, "coffee": 0.5, "chelsea": 0.5}
@@ -43,12 +45,10 @@ def fit_crop(img: np.ndarray, w: int, h: int, anchor_y: float = 0.5) -> np.ndarr
 
 
 def _read_photo(path: Path) -> np.ndarray | None:
-    if not path.is_file():
+    try:
+        return read_rgb8(path)
+    except CaptureError:  # missing or unreadable: the procedural images stand in
         return None
-    img = cv2.imdecode(np.fromfile(path, np.uint8), cv2.IMREAD_COLOR)
-    if img is None:
-        return None
-    return img[:, :, ::-1]  # BGR -> RGB
 
 
 def natural_images(w: int, h: int) -> dict[str, np.ndarray]:

@@ -191,7 +191,7 @@ def calibrate(
     """Calibrate both methods from a loaded capture set.
 
     Captures in camera space (``[capture] space = "camera"``) are first rectified onto the
-    projector grid (``viewcomp.calib.geo.geocal``: chessboard + Gray code); the geometric
+    projector grid (:mod:`viewcomp.calib.geo.rectify`: chessboard + Gray code); the geometric
     statistics go to ``info["geometry"]``.
 
     Raises:
@@ -199,7 +199,7 @@ def calibrate(
     """
     geometry_stats = None
     if cs.rig.capture.space != "projector":
-        from viewcomp.calib.geo.geocal import (
+        from viewcomp.calib.geo.rectify import (
             rectify_capture_set,  # camera frames -> the projector grid
         )
 

@@ -18,7 +18,7 @@ prompt to put it in place; then ``screen/`` on the real screen (the same, plus t
 of OpenCV structured_light). Each stage ends with a second gray capture, compared with its
 first (the camera moved during the stage). Before anything is written, the whole set goes
 through the geometric calibration that `viewcomp calibrate` will run
-(:func:`viewcomp.calib.geo.geocal.rectify_capture_set`) and its saturation and darkness checks:
+(:func:`viewcomp.calib.geo.rectify.rectify_capture_set`) and its saturation and darkness checks:
 a set that is written calibrates. A refused capture raises
 :class:`~viewcomp.calib.io.imageio.CaptureError` (or ``FitError``) and nothing is written.
 
@@ -35,11 +35,13 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.geo.geocal import MIN_PEAK, MOVE_LIMIT_PX, find_corners, frame_shift
+from viewcomp.calib.geo.checks import MIN_PEAK, MOVE_LIMIT_PX, frame_shift
+from viewcomp.calib.geo.chessboard import find_corners
 from viewcomp.calib.hw.devices import Camera, Projector
+from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import DARK_LIMIT, SATURATION_LIMIT, check_captures
-from viewcomp.calib.io.imageio import CaptureError, atomic_open
+from viewcomp.calib.io.imageio import CaptureError, to_linear
 from viewcomp.calib.io.patterns import table1_patterns
 from viewcomp.calib.sim.simcamera import geometric_patterns
 from viewcomp.calib.world.response import Response, parse_response
@@ -141,8 +143,7 @@ class LiveChecks:
 
     def linear(self, raw: np.ndarray) -> np.ndarray:
         """(H, W, 3) codes -> float32 linear 0..1."""
-        top = 255.0 if raw.dtype == np.uint8 else 65535.0
-        return self.response.decode(raw.astype(np.float32) / np.float32(top))
+        return to_linear(raw, self.response)
 
     def check(self, sub: str, name: str, raw: np.ndarray) -> None:
         """Check one capture; raises CaptureError naming it and the fix."""
@@ -277,14 +278,15 @@ def run_capture(
         sleep: the waiting function (tests pass a no-op).
         response: the camera's response to write: None keeps the template's (sRGB without
             one), ``"estimate"`` estimates it from the Gray-code captures (light adds up:
-            :func:`viewcomp.calib.geo.geocal.estimate_response`), otherwise a rig.toml value.
+            :func:`viewcomp.calib.geo.camresponse.estimate_response`), otherwise a rig.toml value.
 
     Raises:
         CaptureError: a capture is refused (the message names it and the fix), the user
             stopped, or the folder cannot hold a capture set. Nothing is written then.
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
-    from viewcomp.calib.geo.geocal import estimate_set_response, rectify_capture_set
+    from viewcomp.calib.geo.camresponse import estimate_set_response
+    from viewcomp.calib.geo.rectify import rectify_capture_set
 
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from viewcomp.calib.io.imageio import atomic_open
+from viewcomp.calib.io.atomic import atomic_open
 
 SCHEMA_VERSION = 1
 FORMAT = "viewcomp-bundle"

@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
+from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.imageio import (
     IMAGE_SUFFIXES,
     CaptureError,
-    atomic_open,
     max_code_fraction,
     read_image,
     to_linear,

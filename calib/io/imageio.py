@@ -1,5 +1,7 @@
-"""Reading and writing capture images, and atomic file writes.
+"""Reading and writing images, and turning encoded camera codes into linear light.
 
+The one image reader of viewcomp (:func:`read_image` for captures as stored, :func:`read_rgb8`
+for content such as a photo or a video frame) and the one linearisation (:func:`to_linear`).
 Conventions: images are numpy arrays (H, W, 3) in RGB order, row 0 at the top. OpenCV's BGR
 order never leaves this module. *Raw* images are what the file holds: uint8 (0..255) or uint16
 (0..65535) encoded camera values, or float32 linear light for ``.npy``. *Linear* images are
@@ -8,16 +10,13 @@ float32 (H, W, 3) in 0..1 camera units (see :mod:`viewcomp.calib.world.response`
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
-from collections.abc import Iterator
+import functools
 from pathlib import Path
-from typing import BinaryIO
 
 import cv2
 import numpy as np
 
+from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.world.response import Response, parse_response
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
@@ -25,39 +24,6 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 
 class CaptureError(ValueError):
     """An image or capture set that cannot be used; the message names the file and the fix."""
-
-
-def _umask() -> int:
-    """The process umask, read without changing it where /proc allows (Linux)."""
-    status = Path("/proc/self/status")
-    if status.is_file():
-        for line in status.read_text().splitlines():
-            if line.startswith("Umask:"):
-                return int(line.split()[1], 8)
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def atomic_open(path: str | Path) -> Iterator[BinaryIO]:
-    """Open a temporary file next to ``path`` for binary writing; on success it replaces
-    ``path`` in one step (``os.replace``), on any error it is removed and ``path`` is left as
-    it was. The parent folder must exist.
-    """
-    target = Path(path)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    tmp = Path(tmp_name)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            yield f
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode
-        os.replace(tmp, target)
-    except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def read_image(path: str | Path) -> np.ndarray:
@@ -68,8 +34,7 @@ def read_image(path: str | Path) -> np.ndarray:
     Raises :class:`CaptureError` when the file is missing or cannot be decoded.
     """
     p = Path(path)
-    if not p.is_file():
-        raise CaptureError(f"not found: {p}")
+    _check_file(p)
     if p.suffix.lower() == ".npy":
         try:
             arr = np.load(p, allow_pickle=False)
@@ -82,21 +47,53 @@ def read_image(path: str | Path) -> np.ndarray:
             )
         arr = arr.astype(np.float32, copy=False)
         return _to_rgb(arr, p, bgr=False)
-    try:
-        data = np.fromfile(p, dtype=np.uint8)
-    except OSError as exc:
-        raise CaptureError(f"cannot read {p}: {exc}") from None
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    if img is None:
-        raise CaptureError(
-            f"cannot decode {p}: not a readable PNG or TIFF image (truncated or another format?)"
-        )
+    img = _decode(p, cv2.IMREAD_UNCHANGED, "a PNG or TIFF image")
     if img.dtype not in (np.uint8, np.uint16):
         raise CaptureError(
             f"cannot use {p}: PNG/TIFF captures must be 8- or 16-bit integers, got {img.dtype} "
             "(save linear float data as .npy instead)"
         )
     return _to_rgb(img, p, bgr=True)
+
+
+def read_rgb8(path: str | Path) -> np.ndarray:
+    """An image to show (a photo, a video frame) as 8-bit RGB (H, W, 3) uint8.
+
+    Any format OpenCV decodes (PNG, JPEG, TIFF, BMP, WebP); 16-bit images are scaled to 8 bits,
+    gray is promoted to 3 channels, alpha is dropped. Raises :class:`CaptureError` when the
+    file is missing, empty or cannot be decoded.
+    """
+    p = Path(path)
+    _check_file(p)
+    bgr = _decode(p, cv2.IMREAD_COLOR, "an image (PNG or JPEG)")
+    return np.ascontiguousarray(bgr[:, :, ::-1])
+
+
+def _check_file(p: Path) -> None:
+    if not p.exists():
+        raise CaptureError(f"cannot read image {p}: not found; fix: check the path")
+    if not p.is_file():
+        raise CaptureError(f"cannot read image {p}: not a file; fix: give an image file")
+
+
+def _decode(p: Path, flags: int, kind: str) -> np.ndarray:
+    """The pixels of an image file as OpenCV decodes them with ``flags`` (BGR order)."""
+    try:
+        data = np.fromfile(p, dtype=np.uint8)
+    except OSError as exc:
+        raise CaptureError(f"cannot read image {p}: {exc}") from None
+    if data.size == 0:
+        raise CaptureError(
+            f"cannot read image {p}: cannot decode an empty (0-byte) file; fix: save or "
+            "capture it again"
+        )
+    img = cv2.imdecode(data, flags)
+    if img is None:
+        raise CaptureError(
+            f"cannot read image {p}: cannot decode {p.name} as {kind} (truncated or another "
+            "format?); fix: save it again as PNG"
+        )
+    return img
 
 
 def _to_rgb(img: np.ndarray, p: Path, *, bgr: bool) -> np.ndarray:
@@ -123,13 +120,21 @@ def to_linear(raw: np.ndarray, response: Response | str | float) -> np.ndarray:
     (``.npy`` captures) are already linear and pass through as float32.
     """
     resp = response if isinstance(response, Response) else parse_response(response)
-    if raw.dtype == np.uint8:
-        return resp.decode(raw.astype(np.float32) / np.float32(255.0))
-    if raw.dtype == np.uint16:
-        return resp.decode(raw.astype(np.float32) / np.float32(65535.0))
+    if raw.dtype in (np.uint8, np.uint16):
+        return _decode_table(resp, raw.dtype.str)[raw]
     if raw.dtype.kind == "f":
         return raw.astype(np.float32, copy=False)
     raise ValueError(f"raw image must be uint8, uint16 or float, got {raw.dtype}")
+
+
+@functools.lru_cache(maxsize=8)
+def _decode_table(response: Response, dtype: str) -> np.ndarray:
+    """``response.decode(code / full scale)`` for every code of ``dtype`` (uint8 or uint16):
+    looking codes up is exact and much faster than decoding each pixel."""
+    top = np.iinfo(np.dtype(dtype)).max
+    table = response.decode(np.arange(top + 1, dtype=np.float32) / np.float32(top))
+    table.flags.writeable = False
+    return table
 
 
 def max_code_fraction(raw: np.ndarray) -> float:

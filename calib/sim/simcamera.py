@@ -45,7 +45,7 @@ from viewcomp.calib.sim.simulator import (
     simulation_rig,
     white_screen,
 )
-from viewcomp.calib.world.geometry import GeometryError
+from viewcomp.calib.world.geometry import meet_screen, screen_points_at
 from viewcomp.calib.world.rig import CaptureSpec, Rig
 
 # Frames the simulated camera averages per capture in camera space. The projector-space
@@ -121,16 +121,7 @@ def camera_view(rig: Rig) -> CameraView:
     cam = rig.camera
     rays = cam.pixel_rays()  # (Hc, Wc, 3) unit, world
     origin = np.asarray(cam.position, np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = -origin[2] / rays[..., 2]
-    if not np.all(np.isfinite(t)) or np.any(t <= 0):
-        raise GeometryError(
-            "some camera pixels do not see the screen plane z = 0: check [camera] position, "
-            "look_at and fov_y in rig.toml (the camera must face the screen)"
-        )
-    pts = origin + t[..., None] * rays
-    pts[..., 2] = 0.0
-    uv = rig.projector.project(pts)
+    uv = rig.projector.project(meet_screen(origin, rays, "camera"))
     w, h = rig.projector.resolution
     u, v = uv[..., 0], uv[..., 1]
     inside = np.isfinite(u) & np.isfinite(v)
@@ -154,17 +145,7 @@ def true_camera_points(rig: Rig, points_uv: np.ndarray) -> np.ndarray:
     uv = np.asarray(points_uv, np.float64)
     if uv.shape[-1:] != (2,):
         raise ValueError(f"points_uv must have shape (..., 2), got {uv.shape}")
-    proj = rig.projector
-    f = proj.focal()
-    cx, cy = proj.principal()
-    rot, _ = proj.pose()
-    d_dev = np.stack([(uv[..., 0] - cx) / f, (uv[..., 1] - cy) / f, np.ones(uv.shape[:-1])], -1)
-    d = d_dev @ rot
-    origin = np.asarray(proj.position, np.float64)
-    t = -origin[2] / d[..., 2]
-    pts = origin + t[..., None] * d
-    pts[..., 2] = 0.0
-    return rig.camera.project(pts)
+    return rig.camera.project(screen_points_at(rig.projector, uv))
 
 
 def true_projector_map(rig: Rig) -> np.ndarray:

@@ -24,6 +24,32 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+def meet_screen(origin: np.ndarray, rays: np.ndarray, device: str) -> np.ndarray:
+    """Where rays from ``origin`` (3,) metres along ``rays`` (..., 3) meet the screen z = 0.
+
+    The one ray/plane intersection of viewcomp. ``rays`` need not be unit vectors.
+
+    Returns:
+        (..., 3) float64 points in metres (z = 0 exactly).
+
+    Raises:
+        GeometryError: some ray does not reach the screen in front of ``origin``; the message
+            names ``device`` (``"projector"``, ``"camera"``: its rig.toml section).
+    """
+    o = np.asarray(origin, np.float64)
+    d = np.asarray(rays, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -o[2] / d[..., 2]
+    if not np.all(np.isfinite(t)) or np.any(t <= 0):
+        raise GeometryError(
+            f"some {device} pixels miss the screen plane z = 0: check [{device}] position, "
+            f"look_at and fov_y in rig.toml (the {device} must face the screen)"
+        )
+    pts = o + t[..., None] * d
+    pts[..., 2] = 0.0
+    return pts
+
+
 def screen_points(projector: Device) -> np.ndarray:
     """p(x): where each projector pixel's ray meets the screen plane z = 0.
 
@@ -33,19 +59,16 @@ def screen_points(projector: Device) -> np.ndarray:
     Raises:
         GeometryError: when some pixel's ray does not reach the screen in front of it.
     """
-    rays = projector.pixel_rays()
-    origin = np.asarray(projector.position, float)
-    dz = rays[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = -origin[2] / dz
-    if not np.all(np.isfinite(t)) or np.any(t <= 0):
-        raise GeometryError(
-            "some projector pixels miss the screen plane z = 0: check [projector] position, "
-            "look_at and fov_y in rig.toml (the projector must face the screen)"
-        )
-    pts = origin + t[..., None] * rays
-    pts[..., 2] = 0.0
-    return pts
+    return meet_screen(projector.position, projector.pixel_rays(), "projector")
+
+
+def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
+    """Points on the screen z = 0 lit by projector pixels: (..., 2) (u, v) -> (..., 3) metres.
+
+    Raises:
+        GeometryError: a ray does not meet the screen in front of the projector.
+    """
+    return meet_screen(projector.position, projector.rays_through(uv), "projector")
 
 
 def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:

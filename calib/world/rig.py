@@ -20,6 +20,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from viewcomp.calib.world.lens import distort_normalised, undistort_normalised
 from viewcomp.calib.world.response import Response, parse_response
 
 Vec3 = tuple[float, float, float]
@@ -106,26 +107,16 @@ class Device:
         return rot, -rot @ pos
 
     def _distort(self, xn: np.ndarray, yn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """OpenCV's distortion on normalised coordinates (no-op without distortion)."""
+        """The device's lens on normalised coordinates (no-op without distortion)."""
         if self.distortion is None:
             return xn, yn
-        k1, k2, p1, p2, k3 = self.distortion
-        r2 = xn * xn + yn * yn
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
-        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
-        return xd, yd
+        return distort_normalised(xn, yn, self.distortion)
 
     def _undistort(self, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Inverse of :meth:`_distort` by fixed-point iteration (exact enough for mild lenses)."""
+        """Inverse of :meth:`_distort` (no-op without distortion)."""
         if self.distortion is None:
             return xd, yd
-        xn, yn = xd.copy(), yd.copy()
-        for _ in range(50):
-            fx, fy = self._distort(xn, yn)
-            xn = xn - (fx - xd)
-            yn = yn - (fy - yd)
-        return xn, yn
+        return undistort_normalised(xd, yd, self.distortion)
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """World points (..., 3) in metres -> pixel coordinates (..., 2) float64 (u right, v down).
@@ -160,9 +151,17 @@ class Device:
         us = (np.arange(width, dtype=np.float64) + 0.5) * (self.width / width) - 0.5
         vs = (np.arange(height, dtype=np.float64) + 0.5) * (self.height / height) - 0.5
         uu, vv = np.meshgrid(us, vs)
+        return self.rays_through(np.stack([uu, vv], axis=-1))
+
+    def rays_through(self, uv: np.ndarray) -> np.ndarray:
+        """Unit world directions (..., 3) float64 of the rays through pixels (..., 2) (u, v),
+        lens distortion included."""
+        p = np.asarray(uv, dtype=np.float64)
+        if p.shape[-1:] != (2,):
+            raise ValueError(f"uv must have shape (..., 2), got {p.shape}")
         f = self.focal()
         cx, cy = self.principal()
-        xn, yn = self._undistort((uu - cx) / f, (vv - cy) / f)
+        xn, yn = self._undistort((p[..., 0] - cx) / f, (p[..., 1] - cy) / f)
         dirs_dev = np.stack([xn, yn, np.ones_like(xn)], axis=-1)
         rot, _ = self.pose()
         return _normalize(dirs_dev @ rot)

@@ -34,10 +34,8 @@ mpv's yuv -> RGB; the forward LUT interpolates linearly, as the reference does).
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -402,36 +400,3 @@ def export_mpv_shader(
     info = MpvShaderInfo(method, (w, h), None if eye is not None else angle, eye_t, param,
                          alpha, beta, precision, len(text))  # fmt: skip
     return text, info
-
-
-def read_image(path: str | os.PathLike[str], grid: tuple[int, int]) -> np.ndarray:
-    """An image file as 8-bit RGB (H, W, 3) fitted to ``grid`` (H, W), as render fits it.
-
-    Raises:
-        ExportError: missing or not decodable.
-    """
-    import cv2
-
-    from viewcomp.rt.media.frames import fit_rgb
-
-    p = Path(path)
-    data = np.fromfile(p, np.uint8) if p.is_file() else None
-    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR) if data is not None and data.size else None
-    if bgr is None:
-        raise ExportError(f"cannot read image {p}: missing or not an image; fix: give a PNG or "
-                          "JPEG frame of typical content")  # fmt: skip
-    return fit_rgb(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), grid[1], grid[0])
-
-
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` to a temporary file next to ``path``, then rename it into place."""
-    from viewcomp.rt.media.video import temp_path_for
-
-    dst = Path(path)
-    tmp = temp_path_for(dst)
-    try:
-        tmp.write_text(text, encoding="ascii")
-        os.replace(tmp, dst)
-    except OSError:
-        tmp.unlink(missing_ok=True)
-        raise

@@ -3,5 +3,5 @@
 - ``compensator``: The GL compensator: the formula of docs/RUNTIME.md in a fragment shader,
   embeddable.
 - ``context``: The headless OpenGL 3.3 context (moderngl standalone, EGL), with one clear error
-  if absent.
+  if absent, and the one GL function loader (``gl_function``, ``default_proc_address``).
 """

@@ -44,7 +44,7 @@ def create_context(require: int = 330) -> moderngl.Context:
 def _gl_void(name: bytes) -> Any:
     """A GL entry point ``void name(void)`` through eglGetProcAddress (ctypes), or None."""
     try:
-        return _gl_proc(name.decode(), (), None)
+        return gl_function(name.decode(), (), None)
     except GLUnavailable:
         return None
 
@@ -87,24 +87,70 @@ ProcAddress = Callable[[str], int]  # a GL function loader: name -> address (0: 
 
 
 @functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
-def _egl_loader() -> ProcAddress:
-    egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
-    egl.eglGetProcAddress.restype = ctypes.c_void_p
-    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-    return lambda name: int(egl.eglGetProcAddress(name.encode()) or 0)
+def libegl() -> ctypes.CDLL:
+    """The system's libEGL, loaded once (raises OSError when it is missing)."""
+    return ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
 
 
 @functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
-def _gl_proc(name: str, argtypes: tuple[Any, ...], loader: ProcAddress | None) -> Any:
-    """``void name(*argtypes)`` of the current GL context, through ``loader`` (default: EGL's
-    eglGetProcAddress, which libglvnd also dispatches to a current GLX context)."""
+def egl_proc_address() -> ProcAddress:
+    """EGL's ``eglGetProcAddress`` as a loader (libglvnd also dispatches it to a current GLX
+    context). Raises OSError without libEGL."""
+    fn = libegl().eglGetProcAddress
+    fn.restype = ctypes.c_void_p
+    fn.argtypes = [ctypes.c_char_p]
+    return lambda name: int(fn(name.encode()) or 0)
+
+
+def default_proc_address() -> ProcAddress:
+    """A GL function loader for the context current on this thread.
+
+    glfw's when a glfw context is current, else EGL's ``eglGetProcAddress``, else GLX's
+    ``glXGetProcAddressARB`` (Mesa and libglvnd dispatch either to the current context).
+
+    Raises:
+        GLUnavailable: none of them can be loaded.
+    """
     try:
-        addr = (loader or _egl_loader())(name)
+        import glfw
+
+        if glfw.get_current_context():
+            return lambda name: int(glfw.get_proc_address(name) or 0)
+    except Exception:  # glfw missing or not initialised: try the system loaders
+        pass
+    try:
+        return egl_proc_address()
+    except (OSError, AttributeError):
+        pass
+    path = ctypes.util.find_library("GL")
+    try:
+        fn = ctypes.CDLL(path).glXGetProcAddressARB if path else None
+    except (OSError, AttributeError):
+        fn = None
+    if fn is None:
+        raise GLUnavailable(f"no GL function loader (glfw, EGL or GLX) found; fix: {GL_FIX}")
+    fn.restype = ctypes.c_void_p
+    fn.argtypes = [ctypes.c_char_p]
+    return lambda name: int(fn(name.encode()) or 0)
+
+
+@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+def gl_function(
+    name: str, argtypes: tuple[Any, ...], loader: ProcAddress | None = None, restype: Any = None
+) -> Any:
+    """``restype name(*argtypes)`` of the current GL context as a ctypes function (which
+    releases the GIL around each call), through ``loader`` (default: EGL's eglGetProcAddress).
+
+    Raises:
+        GLUnavailable: no libEGL, or the driver lacks ``name``.
+    """
+    try:
+        addr = (loader or egl_proc_address())(name)
     except OSError as exc:  # no libEGL
         raise GLUnavailable(f"cannot load GL functions ({exc}); fix: {GL_FIX}") from exc
     if not addr:
         raise GLUnavailable(f"the GL driver has no {name} (OpenGL 3.3 needed); fix: {GL_FIX}")
-    return ctypes.CFUNCTYPE(None, *argtypes)(addr)
+    return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
 
 
 def set_sampler_units(
@@ -116,8 +162,8 @@ def set_sampler_units(
     (``samplerBuffer``); this works for every kind. Leaves no program bound. ``loader``: the
     GL function loader of the host's windowing library (default: EGL's).
     """
-    use = _gl_proc("glUseProgram", (ctypes.c_uint,), loader)
-    uniform1i = _gl_proc("glUniform1i", (ctypes.c_int, ctypes.c_int), loader)
+    use = gl_function("glUseProgram", (ctypes.c_uint,), loader)
+    uniform1i = gl_function("glUniform1i", (ctypes.c_int, ctypes.c_int), loader)
     use(program.glo)
     for name, unit in units.items():
         uniform1i(program[name].location, unit)
@@ -145,11 +191,11 @@ class BufferTexture:
     ) -> None:
         uint, pname = ctypes.c_uint, ctypes.POINTER(ctypes.c_uint)
         self._gl = {  # resolved before anything is made: a failure leaves nothing behind
-            "gen": _gl_proc("glGenTextures", (ctypes.c_int, pname), loader),
-            "delete": _gl_proc("glDeleteTextures", (ctypes.c_int, pname), loader),
-            "bind": _gl_proc("glBindTexture", (uint, uint), loader),
-            "active": _gl_proc("glActiveTexture", (uint,), loader),
-            "tex_buffer": _gl_proc("glTexBuffer", (uint, uint, uint), loader),
+            "gen": gl_function("glGenTextures", (ctypes.c_int, pname), loader),
+            "delete": gl_function("glDeleteTextures", (ctypes.c_int, pname), loader),
+            "bind": gl_function("glBindTexture", (uint, uint), loader),
+            "active": gl_function("glActiveTexture", (uint,), loader),
+            "tex_buffer": gl_function("glTexBuffer", (uint, uint, uint), loader),
         }
         internal_format = BUFFER_FORMATS[fmt]
         self.buffer = ctx.buffer(data, reserve=reserve)
@@ -184,13 +230,13 @@ class BufferTexture:
 
 
 _IS_FUNCS = {
-    "textures": b"glIsTexture",
-    "buffers": b"glIsBuffer",
-    "framebuffers": b"glIsFramebuffer",
-    "renderbuffers": b"glIsRenderbuffer",
-    "vertex_arrays": b"glIsVertexArray",
-    "programs": b"glIsProgram",
-    "shaders": b"glIsShader",
+    "textures": "glIsTexture",
+    "buffers": "glIsBuffer",
+    "framebuffers": "glIsFramebuffer",
+    "renderbuffers": "glIsRenderbuffer",
+    "vertex_arrays": "glIsVertexArray",
+    "programs": "glIsProgram",
+    "shaders": "glIsShader",
 }
 
 
@@ -202,18 +248,10 @@ def live_gl_objects(ctx: moderngl.Context, upto: int = 16384) -> dict[str, int]:
     and the benchmark; needs the EGL context of :func:`create_context` to be current.
     """
     ctx.finish()
-    egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
-    egl.eglGetProcAddress.restype = ctypes.c_void_p
-    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-    proto = ctypes.CFUNCTYPE(ctypes.c_ubyte, ctypes.c_uint)
     # A deleted program stays alive while it is the current one: unbind it first.
-    use_program = ctypes.CFUNCTYPE(None, ctypes.c_uint)(egl.eglGetProcAddress(b"glUseProgram"))
-    use_program(0)
+    gl_function("glUseProgram", (ctypes.c_uint,))(0)
     counts = {}
     for kind, name in _IS_FUNCS.items():
-        addr = egl.eglGetProcAddress(name)
-        if not addr:
-            raise GLUnavailable(f"eglGetProcAddress({name.decode()}) failed")
-        fn = proto(addr)
+        fn = gl_function(name, (ctypes.c_uint,), None, ctypes.c_ubyte)
         counts[kind] = sum(1 for i in range(1, upto + 1) if fn(i))
     return counts

@@ -34,7 +34,6 @@ import logging
 import os
 import queue
 import threading
-import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
 from fractions import Fraction
@@ -44,6 +43,7 @@ from typing import Any, Literal
 import av
 import numpy as np
 
+from viewcomp.calib.io.atomic import AtomicFile
 from viewcomp.rt.media.frames import ColorRange, Colorspace, Planes, fit_rect, pad_planes
 
 log = logging.getLogger(__name__)
@@ -294,11 +294,6 @@ class VideoReader:
         self.close()
 
 
-def temp_path_for(output: Path) -> Path:
-    """A hidden temporary path next to ``output`` with the same extension."""
-    return output.with_name(f".{output.stem}.{uuid.uuid4().hex[:8]}.partial{output.suffix}")
-
-
 class VideoWriter:
     """Encode RGB frames to a video, carrying one audio stream over; atomic on success.
 
@@ -338,13 +333,21 @@ class VideoWriter:
             )
         self.preset = preset
         self.path = Path(path)
-        self.tmp = temp_path_for(self.path)
         self.colorspace = colorspace
         self._index = 0
         self._closed = False
         try:
+            self._target = AtomicFile(self.path)
+        except OSError as exc:
+            raise VideoError(
+                f"cannot write video {self.path}: {exc}; fix: write into an existing, writable "
+                "folder"
+            ) from exc
+        self.tmp = self._target.tmp
+        try:
             self.container = av.open(str(self.tmp), "w")
         except (av.FFmpegError, OSError, ValueError) as exc:
+            self._target.discard(exc)
             raise VideoError(
                 f"cannot write video {self.path}: {exc}; fix: use a writable folder and a "
                 "video extension such as .mp4 or .mkv"
@@ -458,14 +461,17 @@ class VideoWriter:
                 for packet in self.audio_out.encode(None):
                     self.container.mux(packet)
             self.container.close()
-        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
-            self.abort()
+        except BaseException as exc:  # undo on any failure, Ctrl-C included; then re-raise
+            self._abort(exc)
             raise
         self._closed = True
-        os.replace(self.tmp, self.path)
+        self._target.commit()
 
     def abort(self) -> None:
         """Close without finishing and delete the temporary file; no output is left."""
+        self._abort(None)
+
+    def _abort(self, cause: BaseException | None) -> None:
         if self._closed:
             return
         self._closed = True
@@ -474,7 +480,7 @@ class VideoWriter:
         except av.FFmpegError as exc:  # the file is deleted next; its state does not matter
             log.warning("closing the partial video %s failed: %s", self.tmp, exc)
         finally:
-            self.tmp.unlink(missing_ok=True)
+            self._target.discard(cause)
 
     def __enter__(self) -> VideoWriter:
         return self

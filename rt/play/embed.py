@@ -38,7 +38,6 @@ setters are cheap; call them from that thread too (the player queues its inputs 
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import threading
 import time
 from dataclasses import dataclass
@@ -49,7 +48,7 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation, FrameParams, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.rt.gl.compensator import Compensator
-from viewcomp.rt.gl.context import ProcAddress
+from viewcomp.rt.gl.context import ProcAddress, default_proc_address, gl_function
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes
 from viewcomp.rt.play.live import Command, EyeState, SetAngle, SetEye, check_angle, check_eye
 from viewcomp.shaders import build_program
@@ -68,33 +67,6 @@ _GL_NEAREST = 0x2600
 _GL_LINEAR = 0x2601
 
 
-def default_proc_address() -> ProcAddress:
-    """A GL function loader for the context current on this thread.
-
-    glfw's when a glfw context is current, else EGL's ``eglGetProcAddress``, else GLX's
-    ``glXGetProcAddressARB`` (Mesa and libglvnd dispatch either to the current context).
-    """
-    try:
-        import glfw
-
-        if glfw.get_current_context():
-            return lambda name: int(glfw.get_proc_address(name) or 0)
-    except Exception:  # glfw missing or not initialised: try the system loaders
-        pass
-    for lib_name, fn_name in (("EGL", "eglGetProcAddress"), ("GL", "glXGetProcAddressARB")):
-        path = ctypes.util.find_library(lib_name)
-        if not path:
-            continue
-        try:
-            fn = getattr(ctypes.CDLL(path), fn_name)
-        except (OSError, AttributeError):
-            continue
-        fn.restype = ctypes.c_void_p
-        fn.argtypes = [ctypes.c_char_p]
-        return lambda name, fn=fn: int(fn(name.encode()) or 0)
-    raise RuntimeError("no GL function loader (glfw, EGL or GLX) found")
-
-
 class _GL:
     """The few raw GL calls moderngl lacks, through ctypes (which releases the GIL).
 
@@ -103,15 +75,10 @@ class _GL:
     """
 
     def __init__(self, proc: ProcAddress) -> None:
-        bind = proc("glBindFramebuffer")
-        blit = proc("glBlitFramebuffer")
-        finish = proc("glFinish")
-        if not bind or not blit or not finish:
-            raise RuntimeError("the GL driver has no glBlitFramebuffer (GL >= 3.0 needed)")
-        self._bind = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_uint)(bind)
-        self._blit = ctypes.CFUNCTYPE(None, *([ctypes.c_int] * 8), ctypes.c_uint,
-                                      ctypes.c_uint)(blit)  # fmt: skip
-        self.finish = ctypes.CFUNCTYPE(None)(finish)
+        uint = ctypes.c_uint
+        self._bind = gl_function("glBindFramebuffer", (uint, uint), proc)
+        self._blit = gl_function("glBlitFramebuffer", (*[ctypes.c_int] * 8, uint, uint), proc)
+        self.finish = gl_function("glFinish", (), proc)
 
     def blit(
         self,

@@ -26,7 +26,6 @@ a window of another size gets the grid scaled to fit (linear blit, black bars).
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import logging
 import math
 import os
@@ -43,10 +42,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
-from viewcomp.rt.gl.context import core_profile_hints
+from viewcomp.rt.gl.context import core_profile_hints, libegl
 from viewcomp.rt.media.audio import AudioPlayer, AudioStats, open_alsa
 from viewcomp.rt.media.frames import Planes
 from viewcomp.rt.media.video import VideoError, VideoReader
+from viewcomp.rt.play.glfw_session import GlfwSession, MonitorInfo
+from viewcomp.rt.play.glfw_session import list_monitors as glfw_monitors
 from viewcomp.rt.play.live import (
     InputHub,
     LineReader,
@@ -67,10 +68,6 @@ VIDEO_SUFFIXES = {
     ".mp4", ".mkv", ".mov", ".avi", ".webm", ".m4v", ".mpg", ".mpeg", ".ts", ".m2ts", ".ogv",
     ".wmv", ".flv",
 }  # fmt: skip
-DISPLAY_FIX = (
-    "run it on a desktop session (X11 or Wayland), or for tests under a virtual display: "
-    "`Xvfb :99 -screen 0 1280x720x24 & export DISPLAY=:99` (Debian package xvfb)"
-)
 
 
 class PlayerError(RuntimeError):
@@ -108,67 +105,6 @@ def expand_playlist(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
 
 
 # ----------------------------------------------------------------------- monitors
-@dataclass(frozen=True)
-class MonitorInfo:
-    """A display as glfw sees it: index for ``--monitor``, name, mode, position."""
-
-    index: int
-    name: str
-    width: int
-    height: int
-    refresh: int
-    x: int
-    y: int
-
-    def __str__(self) -> str:
-        hz = f" @ {self.refresh} Hz" if self.refresh else ""
-        return f"{self.index}: {self.name} {self.width}x{self.height}{hz} at ({self.x}, {self.y})"
-
-
-class _Glfw:
-    """glfw initialised with our error callback; terminated on close (idempotent)."""
-
-    def __init__(self) -> None:
-        import glfw
-
-        self.glfw = glfw
-        self.last_error = ""
-        glfw.set_error_callback(self._error)
-        if not glfw.init():
-            glfw.set_error_callback(None)
-            raise PlayerError(f"cannot open the display ({self.last_error or 'glfw.init failed'}"
-                              f"; DISPLAY={os.environ.get('DISPLAY', '(unset)')}); fix: "
-                              f"{DISPLAY_FIX}")  # fmt: skip
-        self._open = True
-
-    def _error(self, code: int, description: bytes | str) -> None:
-        text = (
-            description.decode(errors="replace")
-            if isinstance(description, bytes)
-            else str(description)
-        )
-        self.last_error = f"glfw error {code}: {text}"
-        log.debug("%s", self.last_error)
-
-    def monitors(self) -> list[MonitorInfo]:
-        glfw = self.glfw
-        out = []
-        for i, m in enumerate(glfw.get_monitors() or []):
-            mode = glfw.get_video_mode(m)
-            x, y = glfw.get_monitor_pos(m)
-            name = glfw.get_monitor_name(m)
-            name = name.decode(errors="replace") if isinstance(name, bytes) else str(name)
-            out.append(MonitorInfo(i, name, int(mode.size.width), int(mode.size.height),
-                                   int(mode.refresh_rate), int(x), int(y)))  # fmt: skip
-        return out
-
-    def close(self) -> None:
-        if self._open:
-            self.glfw.terminate()
-            self.glfw.set_error_callback(None)
-            self._open = False
-
-
 class _EglSuspend:
     """Releases an EGL context current on this thread, and makes it current again later.
 
@@ -183,11 +119,8 @@ class _EglSuspend:
     def __init__(self) -> None:
         self._saved: tuple[int, int, int, int] | None = None
         self._lib: Any = None
-        path = ctypes.util.find_library("EGL")
-        if not path:
-            return
         try:
-            lib = ctypes.CDLL(path)
+            lib = libegl()
         except OSError:
             return
         for name in ("eglGetCurrentDisplay", "eglGetCurrentContext", "eglGetCurrentSurface"):
@@ -217,11 +150,7 @@ def list_monitors() -> list[MonitorInfo]:
     Raises:
         PlayerError: no display.
     """
-    g = _Glfw()
-    try:
-        return g.monitors()
-    finally:
-        g.close()
+    return glfw_monitors(PlayerError)
 
 
 # ----------------------------------------------------------------------- options, stats
@@ -407,7 +336,7 @@ class Player:
         self.renderer: LiveRenderer | None = None
         self._stop = threading.Event()
         self._vq: queue.Queue[Any] = queue.Queue(maxsize=max(2, self.options.queue_size))
-        self._glfw: _Glfw | None = None
+        self._glfw: GlfwSession | None = None
         self._egl: _EglSuspend | None = None
         self._win: Any = None
         self._ctx: Any = None
@@ -513,7 +442,7 @@ class Player:
 
         o = self.options
         self._egl = _EglSuspend()
-        self._glfw = _Glfw()
+        self._glfw = GlfwSession(PlayerError)
         monitor = None
         if o.windowed:
             w, h = o.size or (self.cal.shape[1], self.cal.shape[0])

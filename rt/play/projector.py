@@ -6,53 +6,22 @@ scaling, no filtering, vsync on.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from viewcomp.calib.hw.devices import DeviceError
 from viewcomp.rt.gl.context import core_profile_hints
+from viewcomp.rt.play.glfw_session import GlfwSession, MonitorInfo
+from viewcomp.rt.play.glfw_session import list_monitors as glfw_monitors
 
 
-def _glfw() -> Any:
-    """The glfw module, initialised, reporting errors as exceptions."""
-    try:
-        import glfw
-    except ImportError as exc:
-        raise DeviceError(
-            f"cannot load GLFW ({exc}): install the glfw Python package and the GLFW 3 "
-            "library (Debian: libglfw3)"
-        ) from exc
-    glfw.ERROR_REPORTING = "raise"
-    try:
-        glfw.init()
-    except glfw.GLFWError as exc:
-        raise DeviceError(
-            f"cannot initialise GLFW ({exc}): run on the machine the projector is connected "
-            "to, with a display (DISPLAY set)"
-        ) from exc
-    return glfw
-
-
-def list_monitors() -> list[dict[str, Any]]:
+def list_monitors() -> list[MonitorInfo]:
     """The monitors GLFW sees: index, name, current mode (width, height, refresh Hz) and
-    position of the top-left corner on the desktop."""
-    glfw = _glfw()
-    out = []
-    for i, mon in enumerate(glfw.get_monitors()):
-        mode = glfw.get_video_mode(mon)
-        name = glfw.get_monitor_name(mon)
-        out.append(
-            {
-                "index": i,
-                "name": name.decode(errors="replace") if isinstance(name, bytes) else str(name),
-                "width": int(mode.size.width),
-                "height": int(mode.size.height),
-                "refresh_hz": int(mode.refresh_rate),
-                "position": tuple(int(v) for v in glfw.get_monitor_pos(mon)),
-            }
-        )
-    return out
+    position of the top-left corner on the desktop.
+
+    Raises:
+        DeviceError: no display (or no glfw).
+    """
+    return glfw_monitors(DeviceError)
 
 
 class GlfwProjector:
@@ -61,31 +30,40 @@ class GlfwProjector:
     or call :meth:`close`."""
 
     def __init__(self, monitor: int, vsync: bool = True) -> None:
-        glfw = _glfw()
+        self._session = GlfwSession(DeviceError)
+        try:
+            self._open(monitor, vsync)
+        except BaseException:
+            self._session.close()
+            raise
+
+    def _open(self, monitor: int, vsync: bool) -> None:
+        glfw = self._session.glfw
         self._glfw = glfw
-        monitors = glfw.get_monitors()
+        monitors = glfw.get_monitors() or []
         if not 0 <= monitor < len(monitors):
-            names = ", ".join(f"{m['index']}: {m['name']}" for m in list_monitors()) or "none"
+            names = ", ".join(f"{m.index}: {m.name}" for m in self._session.monitors()) or "none"
             raise DeviceError(
                 f"no monitor {monitor}: GLFW sees {len(monitors)} ({names}); choose one with "
                 "--monitor (see --list-monitors)"
             )
         mon = monitors[monitor]
         mode = glfw.get_video_mode(mon)
-        try:
-            core_profile_hints(glfw)
-            glfw.window_hint(glfw.AUTO_ICONIFY, False)
-            glfw.window_hint(glfw.REFRESH_RATE, mode.refresh_rate)
-            self._window = glfw.create_window(
-                mode.size.width, mode.size.height, "viewcomp capture", mon, None
-            )
-            glfw.make_context_current(self._window)
-            glfw.swap_interval(1 if vsync else 0)
-            glfw.set_input_mode(self._window, glfw.CURSOR, glfw.CURSOR_HIDDEN)
-        except glfw.GLFWError as exc:
+        core_profile_hints(glfw)
+        glfw.window_hint(glfw.AUTO_ICONIFY, False)
+        glfw.window_hint(glfw.REFRESH_RATE, mode.refresh_rate)
+        self._window = glfw.create_window(
+            mode.size.width, mode.size.height, "viewcomp capture", mon, None
+        )
+        if not self._window:
             raise DeviceError(
-                f"cannot open a fullscreen OpenGL 3.3 window on monitor {monitor} ({exc})"
-            ) from exc
+                f"cannot open a fullscreen OpenGL 3.3 window on monitor {monitor} "
+                f"({self._session.last_error}); fix: install the Debian packages libgl1 "
+                "libgl1-mesa-dri (Mesa llvmpipe is enough)"
+            )
+        glfw.make_context_current(self._window)
+        glfw.swap_interval(1 if vsync else 0)
+        glfw.set_input_mode(self._window, glfw.CURSOR, glfw.CURSOR_HIDDEN)
         import moderngl
 
         from viewcomp.shaders import build_program
@@ -145,6 +123,7 @@ class GlfwProjector:
             obj.release()
         self._ctx.release()
         self._glfw.destroy_window(self._window)
+        self._session.close()
 
     def __enter__(self) -> GlfwProjector:
         return self

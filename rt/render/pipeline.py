@@ -39,11 +39,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
+from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
 from viewcomp.calib.model.reference import RuntimeModel, compensate
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
 from viewcomp.rt.media.video import (
@@ -52,7 +52,6 @@ from viewcomp.rt.media.video import (
     EncodeThread,
     VideoReader,
     VideoWriter,
-    temp_path_for,
 )
 from viewcomp.rt.render.tracks import EyeTrack
 
@@ -397,27 +396,16 @@ def _video_loop(
 
 def _read_image(path: Path, grid: tuple[int, int]) -> np.ndarray:
     """Read an image as 8-bit RGB (H, W, 3) fitted to ``grid`` (H, W)."""
-    if not path.is_file():
-        raise ImageError(f"cannot read image {path}: no such file")
-    data = np.fromfile(path, np.uint8)
-    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)
-    if bgr is None:
-        raise ImageError(
-            f"cannot read image {path}: not a decodable image; fix: save it as PNG or JPEG"
-        )
-    rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    try:
+        rgb = read_rgb8(path)
+    except CaptureError as exc:
+        raise ImageError(str(exc)) from None
     return fit_rgb(rgb, grid[1], grid[0])
 
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:
-    """Write an 8-bit RGB PNG atomically (temporary file, then rename)."""
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-    if not ok:
-        raise ImageError(f"cannot encode PNG for {path}")
-    tmp = temp_path_for(path)
+    """Write an 8-bit RGB PNG atomically (:func:`viewcomp.calib.io.imageio.write_png`)."""
     try:
-        tmp.write_bytes(buf.tobytes())
-        os.replace(tmp, path)
+        write_png(path, rgb)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise ImageError(f"cannot write image {path}: {exc}") from exc

@@ -1,13 +1,138 @@
-"""Small helpers shared by the sub-commands: argument parsing and progress lines."""
+"""Small helpers shared by the sub-commands: argument groups, parsing and progress lines.
+
+Each option that several commands take is declared once here, so that it has one name, one
+meaning and one help text everywhere: :func:`add_eye_arguments` (``--angle``/``--eye``),
+:func:`add_tone_arguments` (``--method``, ``--lambda``, ``--smooth``) and
+:func:`add_simulator_arguments` (``--screen``, ``--gloss``, ``--space``, ``--seed``,
+``--size``).
+"""
 
 from __future__ import annotations
 
+import argparse
+import math
 import sys
 import time
 
 import numpy as np
 
 from viewcomp.cli import UsageError
+
+
+def nonnegative(text: str) -> float:
+    """An argparse type: a finite number >= 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return v
+
+
+def add_eye_arguments(
+    p: argparse.ArgumentParser,
+    *,
+    required: bool = False,
+    angle_default: float | None = None,
+    angle_note: str = "",
+    track: bool = False,
+) -> None:
+    """Where the viewer is: ``--angle DEG`` or ``--eye X,Y,Z`` (and ``--track CSV`` with
+    ``track``), mutually exclusive. ``args.eye`` stays text: parse it with :func:`parse_vec3`.
+    """
+    where = p.add_mutually_exclusive_group(required=required)
+    default = f"; default {angle_default:g}" if angle_default is not None else ""
+    where.add_argument(
+        "--angle",
+        type=float,
+        default=angle_default,
+        metavar="DEG",
+        help="viewing angle in degrees (90 = in front, < 90 to the audience's right"
+        f"{default}{angle_note})",
+    )
+    where.add_argument(
+        "--eye",
+        metavar="X,Y,Z",
+        help="eye position X,Y,Z in metres (world frame, screen at z = 0, +z toward the audience)",
+    )
+    if track:
+        where.add_argument(
+            "--track", metavar="CSV", help="CSV of (seconds, degrees) rows: the angle over time"
+        )
+
+
+def add_tone_arguments(p: argparse.ArgumentParser, *, smooth: bool = True) -> None:
+    """The method and the tone map: ``--method``, ``--lambda`` (``args.lam``, None for the
+    default) and, with ``smooth``, ``--smooth`` (the tone map's time constant in seconds)."""
+    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
+    p.add_argument(
+        "--lambda",
+        dest="lam",
+        type=nonnegative,
+        metavar="L",
+        default=None,
+        help="tone-map brightness weight (Eq. 22), default 1",
+    )
+    if smooth:
+        p.add_argument(
+            "--smooth",
+            type=nonnegative,
+            metavar="SECONDS",
+            default=0.5,
+            help="time constant in seconds of the tone map's smoothing over video frames "
+            "(default 0.5; 0: none)",
+        )
+
+
+def add_simulator_arguments(
+    p: argparse.ArgumentParser | argparse._ArgumentGroup,
+    *,
+    screen: bool = True,
+    gloss: bool = True,
+    space: bool = False,
+    size: str | None = "--size",
+) -> None:
+    """The simulated world: ``--screen`` (a name or R,G,B: :func:`screen_colour`),
+    ``--gloss``, ``--space``, ``--seed`` and the projector grid (``size`` names the flag;
+    None for none; the value is WxH text, see :func:`parse_size`)."""
+    from viewcomp.calib.sim.simulator import GLOSS_PRESETS, SCREEN_COLOURS
+
+    if screen:
+        p.add_argument(
+            "--screen",
+            default="magenta",
+            help=f"simulated screen colour: {', '.join(SCREEN_COLOURS)}, or R,G,B albedos in "
+            "0..1 (default: magenta)",
+        )
+    if gloss:
+        p.add_argument(
+            "--gloss", default="glossy", choices=sorted(GLOSS_PRESETS), help="default: glossy"
+        )
+    if space:
+        p.add_argument(
+            "--space",
+            default="projector",
+            choices=["projector", "camera"],
+            help="projector: captures already on the projector grid; camera: raw camera "
+            "frames, rectified by calibrate (lens, chessboard, Gray code; slower) "
+            "(default: projector)",
+        )
+    p.add_argument("--seed", type=int, default=0, help="simulator noise seed (default 0)")
+    if size is not None:
+        p.add_argument(
+            size,
+            default=None,
+            metavar="WxH",
+            help="simulated projector grid WxH (default 640x320, the paper's)",
+        )
+
+
+def screen_colour(text: str) -> str | tuple[float, float, float]:
+    """A ``--screen`` value: a colour name as given, or R,G,B parsed."""
+    from viewcomp.calib.sim.simulator import SCREEN_COLOURS
+
+    return text if text in SCREEN_COLOURS else parse_rgb(text)
 
 
 def parse_size(text: str) -> tuple[int, int]:

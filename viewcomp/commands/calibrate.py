@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from viewcomp.commands._common import nonnegative
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -24,10 +26,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "camera's row (Eq. 7)",
     )
     p.add_argument(
-        "--smooth",
-        type=float,
+        "--mixing-blur-px",
+        type=nonnegative,
         default=None,
-        help="Gaussian sigma (projector pixels) for the per-pixel colour mixing (default 3)",
+        metavar="PX",
+        help="Gaussian blur sigma in projector pixels of the per-pixel colour mixing and "
+        "ambient (default 3)",
     )
     p.set_defaults(run=run)
 
@@ -44,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     w, h = cs.rig.projector.resolution
     space = cs.rig.capture.space
     log(f"calibrating a {w}x{h} projector ({space} space captures, black: {cs.has_black})")
-    smooth = DEFAULT_SMOOTH_PX if args.smooth is None else args.smooth
+    smooth = DEFAULT_SMOOTH_PX if args.mixing_blur_px is None else args.mixing_blur_px
     cal = calibrate(cs, fit_mode=args.paper_fit, smooth_px=smooth)
     cal.save(args.output)
     f, lobe = cal.paper.fit, cal.pixel.lobe

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from viewcomp.calib.sim.simulator import GLOSS_PRESETS, SCREEN_COLOURS
+    from viewcomp.commands._common import add_simulator_arguments
 
     p = sub.add_parser(
         "capture",
@@ -67,18 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
-    sim.add_argument(
-        "--screen",
-        default="magenta",
-        help=f"simulated real screen: {', '.join(SCREEN_COLOURS)} or R,G,B (default magenta)",
-    )
-    sim.add_argument("--gloss", default="glossy", choices=sorted(GLOSS_PRESETS))
-    sim.add_argument("--seed", type=int, default=0, help="simulated noise seed")
-    sim.add_argument(
-        "--sim-size",
-        default=None,
-        help="simulated projector WIDTHxHEIGHT (the camera scales with it; default 640x320)",
-    )
+    add_simulator_arguments(sim, size="--sim-size")
     p.set_defaults(run=run)
 
 
@@ -159,21 +148,15 @@ def _simulated(
 
     from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
     from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
-    from viewcomp.calib.sim.simulator import (
-        SCREEN_COLOURS,
-        make_screen,
-        simulation_rig,
-        white_screen,
-    )
-    from viewcomp.commands._common import parse_rgb
+    from viewcomp.calib.sim.simulator import make_screen, simulation_rig, white_screen
+    from viewcomp.commands._common import screen_colour
 
     rig = template or simulation_rig()
     if size is not None:
         rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
     true_rig = scaled_camera_rig(rig, size)
     sim = camera_simulator(true_rig, args.seed)
-    colour = args.screen if args.screen in SCREEN_COLOURS else parse_rgb(args.screen)
-    screen = make_screen(colour, args.gloss, shape=sim.shape, seed=args.seed)
+    screen = make_screen(screen_colour(args.screen), args.gloss, shape=sim.shape, seed=args.seed)
     dev = _SimulatedRig(sim, {"white": white_screen(), "screen": screen})
     # the simulated world's geometry is known: write it (without the lens, for calibrate)
     return dev, dev.projector, dev.camera, written_rig(true_rig)
@@ -204,8 +187,5 @@ def _list_monitors() -> int:
         print("GLFW sees no monitor", file=sys.stderr)
         return 1
     for m in mons:
-        print(
-            f"{m['index']}: {m['name']}  {m['width']}x{m['height']} @ {m['refresh_hz']} Hz  "
-            f"at {m['position'][0]},{m['position'][1]}"
-        )
+        print(m)
     return 0

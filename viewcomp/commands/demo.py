@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from viewcomp.commands._common import add_simulator_arguments
+
 DEMO_ANGLES = (45, 60, 90, 120, 135)
 
 
@@ -20,8 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "back, and what that viewer sees is written as a video.",
     )
     p.add_argument("--out", default="viewcomp-demo", help="output folder (default ./viewcomp-demo)")
-    p.add_argument("--screen", default="magenta", help="simulated screen colour (default magenta)")
-    p.add_argument("--seed", type=int, default=0)
+    add_simulator_arguments(p, gloss=False, size=None)
     p.add_argument("--no-video", action="store_true", help="only the still pictures")
     p.set_defaults(run=run)
 
@@ -38,22 +39,23 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.imageio import write_png
     from viewcomp.calib.sim.simulate import simulate_capture_set
     from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import Log
+    from viewcomp.commands._common import Log, screen_colour
 
     log = Log()
     out = Path(args.out)
     caps = out / "captures"
+    colour = screen_colour(args.screen)
     log(f"simulating a glossy {args.screen} screen: capture set in {caps}")
-    simulate_capture_set(caps, args.screen, "glossy", seed=args.seed)
+    simulate_capture_set(caps, colour, "glossy", seed=args.seed)
     log("calibrating both methods")
     cal = calibrate(read_capture_set(caps))
-    bundle = out / f"{args.screen}.vcb"
+    bundle = out / f"{args.screen if isinstance(colour, str) else 'screen'}.vcb"
     cal.save(bundle)
     cal = Calibration.load(bundle)
     log(f"wrote the calibration bundle {bundle}")
 
     sim = Simulator(rig=simulation_rig(), seed=args.seed)
-    screen = make_screen(args.screen, "glossy", shape=sim.shape, seed=args.seed)
+    screen = make_screen(colour, "glossy", shape=sim.shape, seed=args.seed)
     h, w = sim.shape
     images = dict(list(natural_images(w, h).items())[:2])
     comps = {m: Compensation(cal, m) for m in ("paper", "pixel")}
@@ -100,6 +102,7 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     import numpy as np
 
     from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.sim.simulator import white_screen
     from viewcomp.rt.gl.context import GLUnavailable
     from viewcomp.rt.render.pipeline import render_file
@@ -107,7 +110,8 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
 
     clip, track_csv = out / "clip.mp4", out / "walk.csv"
     _write_clip(clip, list(images.values()), seconds=4.0, rate=25)
-    track_csv.write_text("# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n")
+    walk = "# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n"
+    write_text_atomic(track_csv, walk)
     v = cal.rig.viewer
     track = load_angle_track(track_csv, v.distance, v.height)
     comp_clip = out / "clip-compensated.mp4"
@@ -150,9 +154,10 @@ def _write_frames(path: Path, frames: list, rate: int, tone: bool = False) -> No
     import av
     import numpy as np
 
+    from viewcomp.calib.io.atomic import atomic_path
+
     h, w = frames[0].shape[:2]
-    tmp = path.with_name(path.name + ".part")
-    with av.open(str(tmp), "w", format="mp4") as c:
+    with atomic_path(path) as tmp, av.open(str(tmp), "w", format="mp4") as c:
         vs = c.add_stream("libx264", rate=rate)
         vs.width, vs.height, vs.pix_fmt = w - w % 2, h - h % 2, "yuv420p"
         vs.options = {"preset": "veryfast", "crf": "18"}
@@ -173,7 +178,6 @@ def _write_frames(path: Path, frames: list, rate: int, tone: bool = False) -> No
                 af.sample_rate = 48000
                 c.mux(aus.encode(af))
             c.mux(aus.encode(None))
-    tmp.replace(path)
 
 
 def _read_clip(path: Path) -> tuple[list, list]:

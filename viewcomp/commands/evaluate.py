@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from viewcomp.commands._common import add_simulator_arguments
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -17,15 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("-o", "--output", required=True, help="report folder (created if needed)")
     p.add_argument("--protocol", choices=["table2", "sweep", "all"], default="all")
-    p.add_argument("--seed", type=int, default=0, help="simulator noise seed (default 0)")
-    p.add_argument("--size", default=None, help="projector grid WxH (default 640x320, the paper's)")
-    p.add_argument(
-        "--space",
-        choices=["projector", "camera"],
-        default="projector",
-        help="calibrate from projector-grid captures (default) or from simulated camera "
-        "frames rectified by calibrate (lens, chessboard, Gray code; slower)",
-    )
+    add_simulator_arguments(p, screen=False, gloss=False, space=True)
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
 

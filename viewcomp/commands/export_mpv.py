@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from viewcomp.commands._common import parse_vec3
+from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,16 +22,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("-o", "--output", required=True, help="the shader file to write (.glsl)")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--angle", type=float, default=None,
-                       help="viewing angle in degrees (default 90; with --param the default "
-                       "of the parameter)")  # fmt: skip
-    where.add_argument("--eye", help="eye position X,Y,Z in metres instead of an angle")
+    add_eye_arguments(p, angle_note="; default 90, with --param the parameter's default")
     p.add_argument("--param", action="store_true",
                    help="make the angle a //!PARAM (pixel method, vo=gpu-next)")  # fmt: skip
-    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
-    p.add_argument("--lambda", dest="lam", type=float, default=None,
-                   help="tone-map brightness weight (Eq. 22), default 1")  # fmt: skip
+    add_tone_arguments(p, smooth=False)
     p.add_argument("--tone-from", metavar="IMAGE",
                    help="choose the tone map for this image (a typical frame)")  # fmt: skip
     p.add_argument("--alpha", type=float, default=None, help="bake this tone-map alpha")
@@ -45,8 +39,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
     from viewcomp.calib.fit.calibrate import Calibration
+    from viewcomp.calib.io.atomic import write_text_atomic
+    from viewcomp.calib.io.imageio import read_rgb8
     from viewcomp.cli import UsageError
-    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, read_image, write_text_atomic
+    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader
+    from viewcomp.rt.media.frames import fit_rgb
 
     if (args.alpha is None) != (args.beta is None):
         raise UsageError("give both --alpha and --beta, or neither")
@@ -54,7 +51,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--tone-from and --alpha/--beta both set the tone map; give one")
     cal = Calibration.load(args.calib)
     try:
-        sample = read_image(args.tone_from, cal.shape) if args.tone_from else None
+        sample = None
+        if args.tone_from:  # fitted to the grid as render fits it
+            h, w = cal.shape
+            sample = fit_rgb(read_rgb8(args.tone_from), w, h)
         text, info = export_mpv_shader(
             cal,
             method=args.method,
@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     except ExportError as exc:
         raise UsageError(str(exc)) from None
     try:
-        write_text_atomic(args.output, text)
+        write_text_atomic(args.output, text, encoding="ascii")
     except OSError as exc:
         raise UsageError(f"cannot write {args.output}: {exc}") from None
     w, h = info.grid

@@ -6,7 +6,12 @@ import argparse
 import logging
 import sys
 
-from viewcomp.commands._common import parse_size, parse_vec3
+from viewcomp.commands._common import (
+    add_eye_arguments,
+    add_tone_arguments,
+    parse_size,
+    parse_vec3,
+)
 
 EPILOG = """\
 live angle input:
@@ -31,10 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("calib", nargs="?", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("videos", nargs="*", metavar="VIDEO", help="video files or folders")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--angle", type=float, default=90.0,
-                       help="start viewing angle in degrees (default 90, in front)")  # fmt: skip
-    where.add_argument("--eye", help="start eye position X,Y,Z in metres")
+    add_eye_arguments(p, angle_default=90.0, angle_note="; where playback starts")
     p.add_argument("--monitor", type=int, default=0, help="monitor index (see --list-monitors)")
     p.add_argument("--list-monitors", action="store_true", help="list the monitors and exit")
     p.add_argument("--windowed", action="store_true", help="a window instead of fullscreen")
@@ -44,11 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--osc", metavar="HOST:PORT",
                    help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
     p.add_argument("--no-stdin", action="store_true", help="do not read commands from stdin")
-    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
-    p.add_argument("--lambda", dest="lam", type=float, default=None,
-                   help="tone-map brightness weight (Eq. 22), default 1")  # fmt: skip
-    p.add_argument("--smooth", type=float, default=0.5,
-                   help="tone-map smoothing time constant, s (default 0.5)")  # fmt: skip
+    add_tone_arguments(p)
     p.add_argument("--eye-smooth", type=float, default=0.25,
                    help="eye smoothing time constant, s (default 0.25; 0: instant)")  # fmt: skip
     p.add_argument("--step", type=float, default=2.0, help="degrees per arrow key (default 2)")

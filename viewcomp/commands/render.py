@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from viewcomp.commands._common import parse_vec3
+from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,23 +24,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "-o", "--output", required=True, help=".png for an image; .mp4/.mkv/.mov for video"
     )
-    where = p.add_mutually_exclusive_group(required=True)
-    where.add_argument(
-        "--angle", type=float, help="viewing angle in degrees (90 = in front, < 90 right)"
-    )
-    where.add_argument("--eye", help="eye position X,Y,Z in metres (world frame, screen at z = 0)")
-    where.add_argument(
-        "--track", help="CSV of (seconds, degrees) rows: the angle over time (video)"
-    )
-    p.add_argument("--method", choices=["pixel", "paper"], default="pixel", help="default: pixel")
+    add_eye_arguments(p, required=True, track=True)
+    add_tone_arguments(p)
     p.add_argument("--backend", choices=["gl", "cpu"], default="gl",
                    help="gl: the GLSL shader (default); cpu: the numpy reference")  # fmt: skip
     p.add_argument("--identity", action="store_true",
                    help="run the same pipeline with compensation off (A/B, timing)")  # fmt: skip
-    p.add_argument("--lambda", dest="lam", type=float, default=None,
-                   help="tone-map brightness weight (Eq. 22), default 1")  # fmt: skip
-    p.add_argument("--smooth", type=float, default=0.5,
-                   help="tone-map smoothing time constant (s), video (default 0.5)")  # fmt: skip
     p.add_argument("--crf", type=float, default=18, help="video quality (x264 CRF, default 18)")
     p.add_argument("--codec", default="libx264", help="video codec (default libx264)")
     p.add_argument("--preset", default=None, help="encoder preset, e.g. veryfast (x264)")

@@ -1,0 +1,244 @@
+"""Geometric calibration of a camera-space capture set: from camera frames to the projector grid.
+
+With ``[capture] space = "camera"`` the captures are raw camera frames (Hc, Wc, 3): the
+projector's frame is a distorted quadrilateral in them. Before any of docs/MODEL.md's math, every
+capture is rectified onto the projector's pixel grid (H, W), as the paper does with Zhang's
+method and a chessboard:
+
+1. **Chessboard** (``screen/chessboard``, and ``white/chessboard`` when present):
+   ``cv2.findChessboardCorners`` + ``cv2.cornerSubPix``; the corners' projector coordinates
+   are known (:func:`~viewcomp.calib.io.patterns.chessboard`), their points on the screen come
+   from the rig's projector. Zhang's method (``cv2.calibrateCamera``) on that one planar
+   view, seeded with the rig's intrinsics which stay fixed (one view cannot determine them),
+   estimates the lens distortion (k1, k2) and gives the reprojection error.
+2. **Gray code** (``screen/graycode_white``, ``graycode_black``, ``graycode_00`` ...; OpenCV
+   structured_light's patterns): decoded per camera pixel into the projector column and row
+   that light it. Each bit plane is first checked against the chessboard's prediction, so a
+   plane out of order is named.
+3. **The map** projector pixel -> camera pixel, a smooth model fitted to the decoded pixels
+   (robust least squares, started from Zhang's lens and the chessboard's homography):
+   camera = K dist(H [s, t, 1]) + r(s, t), with (s, t) the projector pixel scaled to -1..1,
+   K the rig's camera matrix, dist OpenCV's (k1, k2, p1, p2) lens refined on the dense
+   points, H a homography (exact for a pinhole projector on a plane) and r a cubic
+   polynomial correction (what the projector's own lens adds). The Gray code quantises to
+   whole projector pixels; the fit over ~10^4 pixels averages that away.
+4. **Rectification**: ``cv2.remap`` (bilinear) of every Table-1 capture through the map gives
+   float32 (H, W, 3) linear images on the projector grid, as a ``space = "projector"`` set;
+   the frame's outermost ring of pixels, seen half against the unlit surround, copies its
+   inner neighbours (:func:`~viewcomp.calib.geo.projmap.fill_border`).
+
+The camera's response comes from rig.toml. It is checked against the captures: light adds
+up, so a Gray-code plane and its inverse, linearised, must sum to white + black even where
+the optics blur a stripe edge to an intermediate value; :mod:`~viewcomp.calib.geo.camresponse`
+finds the response ("linear", "srgb" or a power law) that makes them do so, and a rig
+response that misfits grossly is refused with the estimate in the message.
+
+Refusals (:class:`~viewcomp.calib.errors.FitError`, naming the capture and the fix): no
+chessboard; Gray code missing, out of order or not covering the projector image; Table-1
+captures in the wrong order (or one as dark as black); a saturated chessboard; the camera
+moved between captures (the projector frame's edges or the chessboard corners shift by more
+than :data:`~viewcomp.calib.geo.checks.MOVE_LIMIT_PX`); the projector image not wholly in the
+camera's view; a wrong camera response.
+
+Units: camera and projector coordinates are pixels, (x right, y down), pixel centres at
+integers; image arrays are indexed ``[row, column]``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from viewcomp.calib.errors import FitError
+from viewcomp.calib.geo.camresponse import check_response
+from viewcomp.calib.geo.captures import Captures
+from viewcomp.calib.geo.checks import (
+    MOVE_LIMIT_PX,
+    MoveCheck,
+    check_coverage,
+    check_pattern_order,
+)
+from viewcomp.calib.geo.chessboard import Corners, find_corners, zhang
+from viewcomp.calib.geo.graycode import GrayCode, check_planes, decode_graycode
+from viewcomp.calib.geo.projmap import (
+    ProjectorMap,
+    fill_border,
+    fit_map,
+    predict_from_chessboard,
+    rectify,
+)
+from viewcomp.calib.io.captureset import OPTIONAL, REQUIRED, CaptureSet
+from viewcomp.calib.io.checks import SATURATION_LIMIT
+
+MIN_DECODED = 0.5  # share of the lit projector frame that must decode
+MAX_DENSE_POINTS = 12000
+BORDER_PX = 1  # projector pixels at the frame's edge, seen half against the unlit surround
+
+
+@dataclass
+class Geometry:
+    """The geometric calibration of a camera-space set: the ``map`` projector -> camera, the
+    chessboard ``corners`` of screen/chessboard, the decoded ``graycode`` and JSON-ready
+    ``stats`` (reprojection errors in camera pixels, the lens, the largest frame shift)."""
+
+    map: ProjectorMap
+    corners: Corners
+    graycode: GrayCode
+    stats: dict[str, Any]
+
+
+def calibrate_geometry(cs: CaptureSet) -> Geometry:
+    """Chessboard + Zhang, Gray code, the dense map and the camera-moved checks (steps 1-3 of
+    the module doc) for a ``space = "camera"`` capture set.
+
+    Raises:
+        FitError: a capture that makes geometric calibration impossible (see module doc).
+    """
+    t0 = time.perf_counter()
+    rig = cs.rig
+    size = rig.projector.resolution
+    cw, ch = rig.camera.resolution
+    shape = (ch, cw)
+    screen = Captures(cs, "screen")
+    white = Captures(cs, "white")
+
+    # 1. chessboard + Zhang
+    cb = screen.get("chessboard")
+    sat = screen.saturation.get("chessboard", 0.0)
+    if sat > SATURATION_LIMIT:
+        raise FitError(
+            screen.rel("chessboard"),
+            f"{sat:.1%} of its pixel-channels are at the maximum code (saturated): lower the "
+            "camera's exposure or the projector's brightness and capture again",
+        )
+    corners = find_corners(cb, size, screen.rel("chessboard"))
+    k, dist, zhang_rms = zhang(corners, rig)
+    stats: dict[str, Any] = {
+        "space": "camera",
+        "chessboard": {
+            "corners": len(corners.camera),
+            "zhang_rms_px": round(zhang_rms, 4),
+            "distortion": [round(float(v), 5) for v in dist],
+        },
+    }
+    if white.has("chessboard"):
+        wc = find_corners(white.get("chessboard"), size, white.rel("chessboard"))
+        shift = float(np.sqrt(np.mean(np.sum((wc.camera - corners.camera) ** 2, axis=1))))
+        stats["chessboard"]["white_vs_screen_px"] = round(shift, 4)
+        if shift > MOVE_LIMIT_PX:
+            raise FitError(
+                white.rel("chessboard"),
+                f"its corners lie {shift:.1f} camera px (RMS) from those of "
+                f"{screen.rel('chessboard')}: the camera (or the screen plane) moved between the "
+                "white screen's captures and the real screen's; fix the camera and capture both "
+                "sets again",
+            )
+
+    # 2. Gray code; the camera must not have moved; each plane checked against the chessboard
+    mover = MoveCheck(screen)
+    gc = decode_graycode(screen, size, on_pair=lambda n, img: mover(screen, n, img))
+    stats["response"] = check_response(gc, screen.response, "rig.toml")
+    gc_rel = screen.rel(gc.names[0])
+    mover.flush(lambda: check_coverage(gc, size, gc_rel))
+    for caps in (white, screen):
+        for n in (*REQUIRED, *OPTIONAL, "chessboard"):
+            if n != "black" and caps.has(n):
+                mover(caps, n, caps.get(n), lambda: check_coverage(gc, size, gc_rel))
+    stats["max_frame_shift_px"] = round(mover.worst, 4)
+    pred, region, h_cb = predict_from_chessboard(corners, k, dist, shape)
+    agreement = check_planes(gc, screen, pred, region)
+    check_coverage(gc, size, screen.rel(gc.names[0]))
+    ok = gc.column >= 0
+    lit_frac = float(ok.sum()) / max(int(gc.lit.sum()), 1)
+    if lit_frac < MIN_DECODED:
+        raise FitError(
+            screen.rel(gc.names[0]),
+            f"only {lit_frac:.0%} of the lit camera pixels decode to a projector pixel: the "
+            "Gray-code captures are blurred, too dark or out of order; focus the camera, check "
+            "the exposure and capture them again",
+        )
+
+    # 3. the dense map
+    ys, xs = np.nonzero(ok)
+    step = max(1, int(np.ceil(len(xs) / MAX_DENSE_POINTS)))
+    sel = slice(None, None, step)
+    cam_pts = np.stack([xs[sel], ys[sel]], 1).astype(np.float64)
+    proj_pts = np.stack([gc.column[ys[sel], xs[sel]], gc.row[ys[sel], xs[sel]]], 1).astype(
+        np.float64
+    )
+    cu, cv = (size[0] - 1) / 2.0, (size[1] - 1) / 2.0
+    norm = np.array([[1 / cu, 0, -1], [0, 1 / cv, -1], [0, 0, 1]])
+    h0 = h_cb @ np.linalg.inv(norm)
+    pmap, fit = fit_map(cam_pts, proj_pts, k, dist, h0, size)
+    corner_err = np.linalg.norm(pmap(corners.projector) - corners.camera, axis=1)
+    corner_rms = float(np.sqrt(np.mean(corner_err**2)))
+    stats["graycode"] = {
+        "decoded_fraction_of_lit": round(lit_frac, 4),
+        "plane_agreement_min": min(agreement.values()) if agreement else None,
+        **fit,
+    }
+    stats["map"] = {
+        "model": "camera = K dist(H [s, t, 1]) + cubic(s, t)",
+        "distortion": [round(float(v), 5) for v in pmap.distortion],
+        "chessboard_rms_px": round(corner_rms, 4),
+    }
+    if corner_rms > MOVE_LIMIT_PX:
+        raise FitError(
+            screen.rel(gc.names[0]),
+            f"the Gray-code map misses the chessboard's corners by {corner_rms:.1f} camera px "
+            f"(RMS): the camera moved between {screen.rel('chessboard')} and the Gray-code "
+            "captures; fix the camera and capture the set again",
+        )
+    mx, my = pmap.grid()
+    outside = (mx < -0.5) | (mx > cw - 0.5) | (my < -0.5) | (my > ch - 0.5)
+    if outside.any():
+        raise FitError(
+            screen.rel("graycode_white"),
+            f"{outside.mean():.1%} of the projector's pixels fall outside the camera's image: "
+            "aim or zoom the camera out so that it sees the whole projected image, with a margin",
+        )
+
+    stats["seconds"] = round(time.perf_counter() - t0, 2)
+    return Geometry(pmap, corners, gc, stats)
+
+
+def rectify_capture_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, Any]]:
+    """Rectify a ``space = "camera"`` capture set onto the projector grid.
+
+    Returns a CaptureSet whose ``white`` and ``screen`` hold the Table-1 captures (and black)
+    as float32 (H, W, 3) linear on the projector grid, with saturation fractions measured on
+    the projector grid (the rig is unchanged); and the geometric statistics of
+    :func:`calibrate_geometry`.
+
+    Raises:
+        FitError: a capture that makes geometric calibration or rectification impossible.
+    """
+    t0 = time.perf_counter()
+    geo = calibrate_geometry(cs)
+    stats = dict(geo.stats)
+    maps = geo.map.grid()
+    white, screen = Captures(cs, "white"), Captures(cs, "screen")
+    rect: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
+    fractions: dict[tuple[str, str], float] = {}
+    for caps in (white, screen):
+        for n in (*REQUIRED, *OPTIONAL):
+            if n not in caps.memory:
+                continue
+            img = caps.get(n)
+            rect[caps.sub][n] = fill_border(rectify(img, maps), BORDER_PX)
+            top = (img >= 1.0).astype(np.float32)
+            fractions[(caps.sub, n)] = float(rectify(top, maps).round().mean())
+        check_pattern_order(rect[caps.sub], caps.sub)
+    stats["seconds"] = round(time.perf_counter() - t0, 2)
+    out = CaptureSet(
+        rig=cs.rig,
+        white=rect["white"],
+        screen=rect["screen"],
+        raw_max_fraction=fractions,
+        path=cs.path,
+        extra={},
+    )
+    return out, stats
