@@ -8,9 +8,12 @@ much less, so compare ratios within one run and look at both.
 - ``per_frame``: at 720p, 1080p and 2160p: decode (PyAV on the worker thread, yuv420p planes
   out), upload (planes, RGB), the shader for ``identity`` (pass-through), ``pixel`` (float32
   maps, solved per frame: a moving eye), ``pixel_cached`` (drawn from the view cache: a held
-  eye, what a constant ``--angle`` runs), ``pixel_packed`` (20-bit maps, solved) and
-  ``paper`` on planes and on RGB, ``view_cache_build_and_draw_rgb`` (a new eye: the whole
-  cache rebuilt, then a draw), read-back; start-up (program compile, model upload) apart.
+  eye, what a constant ``--angle`` runs) and ``paper`` on planes and on RGB,
+  ``view_cache_build_and_draw_rgb`` (a new eye: the whole cache rebuilt, then a draw),
+  read-back; start-up (program compile, model upload) apart. The shaders evaluate
+  ``shaders/compensate_core.glsl`` with the model's numbers compiled in as literals and the
+  frame's from the vertex shader (``bench/bench_uniforms.py`` measures that against a
+  uniform block).
 - ``cpu_reference_1080p``: the numpy reference (``viewcomp.calib.model.reference.compensate``) and
   ``speedup_1080p`` = reference / GL (upload RGB + shader + read-back).
 - ``params``: ``comp(thumb, eye, t)`` of ``viewcomp.calib.comp.compensation.Compensation`` on a
@@ -130,17 +133,15 @@ def bench_size(ctx: Any, name: str, repeats: int, tmp: Path) -> dict[str, Any]:
     frame = yuv420p_to_rgb(planes)
     out = np.empty((h, w, 3), np.uint8)
     startup = {}
-    # name, method, precision, view cache: "pixel" solves per frame (a moving eye),
-    # "pixel_cached" draws from the view cache (a held eye: the default for a constant angle).
+    # name, method, view cache: "pixel" solves per frame (a moving eye), "pixel_cached" draws
+    # from the view cache (a held eye: the default for a constant angle).
     variants = (
-        ("pixel", "pixel", "float32", False), ("pixel_cached", "pixel", "float32", True),
-        ("pixel_packed", "pixel", "packed", False), ("paper", "paper", "float32", False),
+        ("pixel", "pixel", False), ("pixel_cached", "pixel", True), ("paper", "paper", False),
     )  # fmt: skip
-    for key, method, precision, cached in variants:
+    for key, method, cached in variants:
         model = synthetic_model(method, w, h)  # type: ignore[arg-type]
         t = time.perf_counter()
-        comp = Compensator(model, ctx, precision=precision, view_cache=cached,  # type: ignore[arg-type]
-                           view_hold=0, view_steps=1)  # fmt: skip
+        comp = Compensator(model, ctx, view_cache=cached, view_hold=0, view_steps=1)
         comp.set_eye(*EYE)
         comp.set_tone(ALPHA, BETA)
         comp.render_planes(planes, out=out)  # compiles the variant (and builds the cache)

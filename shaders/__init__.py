@@ -11,23 +11,46 @@ Files:
 - ``fullscreen.vert.glsl``: a fullscreen triangle from ``gl_VertexID`` (no vertex buffer).
 - ``yuv.glsl``: yuv420p planes (Y R8UI, UV RG8UI) -> RGB 8-bit levels, fixed point, bit-exact
   with :func:`viewcomp.rt.media.frames.yuv420p_to_rgb` (included by the fragment shader).
-- ``compensate.frag.glsl``: the per-pixel formula of docs/RUNTIME.md for the methods
-  ``identity``, ``pixel`` and ``paper``, one fragment path.
+- ``compensate_core.glsl``: the per-pixel formula of docs/RUNTIME.md as functions of values
+  already fetched (the one GLSL source of it), included by the next two.
+- ``compensate.frag.glsl``: the GL compensator's fragment shader for the methods
+  ``identity``, ``pixel`` and ``paper``, one fragment path per variant.
+- ``mpv_pixel.glsl``, ``mpv_paper.glsl``: the body of the mpv user shader of ``viewcomp
+  export-mpv`` per method (mpv's sampling of the frame and the maps around the same
+  formula), both including ``mpv_lut.glsl`` (the formula and mpv's sampling of the LUTs).
+- ``mpv_harness.frag.glsl``: runs an exported mpv hook body as a fragment shader here (for
+  the tests: what mpv would run, against the numpy reference).
+- ``present.frag.glsl``: an image texture over the viewport.
+
+:func:`literal`, :func:`vec_literal` and :func:`array_literal` print numbers as GLSL
+literals that read back as the same float32 (the ``#define`` values of both hosts).
 """
 
 from __future__ import annotations
 
 import functools
 import importlib.resources
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 if TYPE_CHECKING:
     import moderngl
 
-__all__ = ["ShaderError", "assemble", "build_program", "list_shaders", "load"]
+__all__ = [
+    "ShaderError",
+    "array_literal",
+    "assemble",
+    "build_program",
+    "list_shaders",
+    "literal",
+    "load",
+    "vec_literal",
+]
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
@@ -74,12 +97,16 @@ def assemble(
     name: str,
     defines: dict[str, str | int | float] | None = None,
     loader: Callable[[str], str] = load,
+    *,
+    directives: bool = True,
 ) -> Assembled:
     """Expand includes of shader ``name`` and insert ``#line`` directives.
 
     The first line of ``name`` must be ``#version ...``; ``defines`` become ``#define`` lines
     after it. Included files must not carry a ``#version`` and are expanded once each.
     ``loader`` maps a file name to its text (the package's :func:`load` by default).
+    ``directives=False``: a fragment of a shader for another program (an mpv hook body): no
+    ``#version`` line (the ``#define`` lines come first) and no ``#line`` directives.
     """
     files: list[str] = []
     out: list[str] = []
@@ -90,14 +117,16 @@ def assemble(
         files.append(fname)
         lines = loader(fname).splitlines()
         start = 0
-        if top:
+        if top and directives:
             if not lines or not _VERSION.match(lines[0]):
                 raise ShaderError(f"{fname}:1: the first line must be a #version directive")
             out.append(lines[0])
+            start = 1
+        if top:
             for key, val in (defines or {}).items():
                 out.append(f"#define {key} {val}")
-            start = 1
-        out.append(f"#line {start + 1} {idx}")
+        if directives:
+            out.append(f"#line {start + 1} {idx}")
         for i in range(start, len(lines)):
             line = lines[i]
             m = _INCLUDE.match(line)
@@ -106,7 +135,8 @@ def assemble(
                 if inc not in seen:
                     seen.add(inc)
                     expand(inc, top=False)
-                out.append(f"#line {i + 2} {idx}")
+                if directives:
+                    out.append(f"#line {i + 2} {idx}")
                 continue
             if _VERSION.match(line):
                 raise ShaderError(f"{fname}:{i + 1}: #version is only allowed on line 1")
@@ -115,6 +145,30 @@ def assemble(
     seen.add(name)
     expand(name, top=True)
     return Assembled("\n".join(out) + "\n", tuple(files))
+
+
+def literal(x: float) -> str:
+    """A float32 value as a GLSL float literal that parses back to the same float32.
+
+    Raises:
+        ValueError: ``x`` is not finite (no GLSL literal for it).
+    """
+    v = float(np.float32(x))
+    if not math.isfinite(v):
+        raise ValueError(f"cannot write the non-finite value {x!r} as a GLSL literal")
+    text = f"{v:.9g}"
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def vec_literal(values: Any) -> str:
+    """``vecN(..)`` of N = 2..4 numbers (any array-like, flattened)."""
+    vals = [literal(v) for v in np.asarray(values, np.float64).ravel()]
+    return f"vec{len(vals)}({', '.join(vals)})"
+
+
+def array_literal(kind: str, items: list[str]) -> str:
+    """A GLSL array constructor ``kind[n](items...)`` of literals already printed."""
+    return f"{kind}[{len(items)}]({', '.join(items)})"
 
 
 def _map_log(log: str, files: tuple[str, ...]) -> tuple[str, int | None, str]:

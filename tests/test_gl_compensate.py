@@ -11,11 +11,7 @@ import pytest
 
 from viewcomp.calib.model.reference import compensate
 from viewcomp.calib.world.eye import eye_from_angle
-from viewcomp.rt.gl.compensator import (
-    Compensator,
-    pack_pixel_maps,
-    unpack_pixel_maps,
-)
+from viewcomp.rt.gl.compensator import Compensator, pixel_texels
 from viewcomp.rt.gl.context import live_gl_objects
 from viewcomp.rt.media.frames import Planes, rgb_to_yuv420p, yuv420p_to_rgb
 from viewcomp.rt.testing import (
@@ -39,23 +35,17 @@ def assert_close(gl: np.ndarray, ref: np.ndarray) -> None:
     assert np.mean(d > 1) <= 0.001, f"{np.mean(d > 1):.4%} of pixel-channels differ by > 1"
 
 
-# (method, precision, path): "solve" solves per draw, "cached" draws from the view cache
-# (built on the first draw at an eye: view_hold=0).
-VARIANTS = [
-    ("pixel", "float32", "solve"), ("pixel", "float32", "cached"),
-    ("pixel", "packed", "solve"), ("pixel", "packed", "cached"), ("paper", "float32", "paper"),
-]  # fmt: skip
+# (method, path): "solve" solves per draw, "cached" draws from the view cache (built on the
+# first draw at an eye: view_hold=0).
+VARIANTS = [("pixel", "solve"), ("pixel", "cached"), ("paper", "paper")]
 
 
 @pytest.fixture(scope="module", params=VARIANTS, ids=["-".join(v) for v in VARIANTS])
 def comp_and_model(request, gl_ctx):
-    method, precision, path = request.param
+    method, path = request.param
     model = synthetic_model(method, W, H, seed=3)
     cached = path == "cached"
-    with Compensator(
-        model, gl_ctx, precision=precision, view_cache=cached, view_hold=0, view_steps=1
-    ) as comp:
-        assert comp.packed == (precision == "packed")
+    with Compensator(model, gl_ctx, view_cache=cached, view_hold=0, view_steps=1) as comp:
         comp.expected_path = path
         yield comp, model
 
@@ -100,7 +90,6 @@ def test_gl_matches_reference_on_a_real_calibration(gl_ctx, real, angle, kind, c
         raise
     ref = compensate(p.model, frame, eye, p.alpha, p.beta)
     with Compensator(p.model, gl_ctx, view_cache=cached, view_hold=0, view_steps=1) as comp:
-        assert not comp.packed  # the default: exact float32 maps
         comp.set_eye(*eye)
         comp.set_tone(p.alpha, p.beta)
         assert_close(comp.render(frame), ref)
@@ -129,32 +118,25 @@ def test_video_planes_match_reference(comp_and_model) -> None:
     assert_close(comp.render_planes(planes), ref)
 
 
-def test_packing_round_trip_error_is_half_a_step() -> None:
-    from viewcomp.rt.gl.compensator import PACKED_LAYOUT, _pixel_arrays
+def test_pixel_texels_layout() -> None:
+    """The maps' 8 texels per pixel hold the model's arrays as compensate_core.glsl reads
+    them, and the camera's lobe that the reference uses."""
+    from viewcomp.calib.model.reference import lobe_change
 
-    model, lobe = _pixel_arrays(synthetic_model("pixel", 40, 24, seed=2))
-    images, scale, offset = pack_pixel_maps(model, lobe)
-    assert len(images) == 5 and images[0].dtype == np.uint32 and images[0].shape == (24, 40, 4)
-    back = unpack_pixel_maps(images, scale, offset)
-
-    def pick(a: np.ndarray, i, j) -> np.ndarray:
-        return a if i is None else (a[..., i] if j is None else a[..., i, j])
-
-    for k, (name, i, j) in enumerate(PACKED_LAYOUT[:31]):
-        orig = pick(lobe if name == "lobe" else getattr(model, name), i, j)
-        got = pick(back[name], i, j)
-        step = scale.ravel()[k]
-        assert np.abs(got - orig).max() <= 0.5 * step + 1e-6 * np.abs(orig).max(), name
-
-
-def test_precision_choice(gl_ctx) -> None:
-    model = synthetic_model("pixel", 32, 16)
-    with Compensator(model, gl_ctx) as comp:
-        assert not comp.packed
-    with Compensator(model, gl_ctx, precision="packed") as comp:
-        assert comp.packed
-    with pytest.raises(ValueError, match="precision must be 'float32' or 'packed'"):
-        Compensator(model, gl_ctx, precision="auto")  # type: ignore[arg-type]
+    model = synthetic_model("pixel", 40, 24, seed=2)
+    t = pixel_texels(model)
+    assert t.shape == (24, 40, 8, 4) and t.dtype == np.float32
+    np.testing.assert_array_equal(t[:, :, 0:3, :3], model.Ww)
+    np.testing.assert_array_equal(t[:, :, 0:3, 3], model.Aw)
+    np.testing.assert_array_equal(t[:, :, 3:6, :3], model.Wc)
+    np.testing.assert_array_equal(t[:, :, 3:6, 3], model.Ac)
+    np.testing.assert_array_equal(t[:, :, 6, :3], model.refl)
+    np.testing.assert_array_equal(t[:, :, 7, :3], model.pos)
+    np.testing.assert_array_equal(t[:, :, 7, 3], model.cam_lobe)
+    assert not np.any(t[:, :, 6, 3])
+    # At the camera's own position the lobe does not change.
+    assert np.abs(lobe_change(model, model.cam_eye)).max() == 0.0
+    assert 0.0 < model.cam_lobe.max() <= 1.0
 
 
 @pytest.mark.parametrize(

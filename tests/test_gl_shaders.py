@@ -10,7 +10,7 @@ from viewcomp.shaders import ShaderError, assemble, build_program, list_shaders,
 
 pytestmark = pytest.mark.gl
 
-VARIANTS = [(m, i, k) for m in (0, 1, 2, 3, 4) for i in (0, 1) for k in (0, 1)]
+VARIANTS = [(m, i) for m in (0, 1, 2, 3, 4) for i in (0, 1)]
 
 
 def test_shaders_are_package_data() -> None:
@@ -26,7 +26,7 @@ def test_unknown_shader_is_a_clear_error() -> None:
 
 def test_line_directives_keep_file_line_numbers() -> None:
     asm = assemble("compensate.frag.glsl", {"METHOD": 1})
-    assert asm.files == ("compensate.frag.glsl", "yuv.glsl")
+    assert asm.files == ("compensate.frag.glsl", "yuv.glsl", "compensate_core.glsl")
     lines = asm.source.splitlines()
     assert lines[0].startswith("#version 330")
     # The line after "#line 1 1" is yuv.glsl's first line.
@@ -34,10 +34,10 @@ def test_line_directives_keep_file_line_numbers() -> None:
     assert lines[i + 1] == load("yuv.glsl").splitlines()[0]
 
 
-@pytest.mark.parametrize(("method", "inp", "packed"), VARIANTS)
-def test_every_variant_compiles(gl_ctx, method: int, inp: int, packed: int) -> None:
+@pytest.mark.parametrize(("method", "inp"), VARIANTS)
+def test_every_variant_compiles(gl_ctx, method: int, inp: int) -> None:
     """With the file's defaults (Compensator compiles its constants in as literals)."""
-    prog = build_program(gl_ctx, defines={"METHOD": method, "INPUT": inp, "PACKED": packed})
+    prog = build_program(gl_ctx, defines={"METHOD": method, "INPUT": inp})
     # Per frame the fragment shader reads no uniforms (llvmpipe pays per pixel for them):
     # everything but the samplers lives in the vertex shader.
     names = [n for n in prog if not n.startswith(("u_", "gl_")) or n in ("u_frame", "u_flip_y")]
@@ -62,6 +62,7 @@ def _broken_loader(target: str, line: int):
     [
         ("compensate.frag.glsl", 60, "fragment"),
         ("yuv.glsl", 20, "fragment"),
+        ("compensate_core.glsl", 20, "fragment"),
         ("fullscreen.vert.glsl", 5, "vertex"),
     ],
 )

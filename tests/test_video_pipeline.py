@@ -103,19 +103,6 @@ def test_comp_called_once_per_frame_with_its_time(gl_ctx, clip, tmp_path) -> Non
 
 
 @pytest.mark.gl
-def test_packed_maps_through_the_pipeline(gl_ctx, clip, tmp_path) -> None:
-    stats = render_file(fake("pixel", 64, 36), clip, tmp_path / "o.mkv",
-                        constant_angle(60, 0.5, 0.035), progress=False, ctx=gl_ctx,
-                        precision="packed")  # fmt: skip
-    assert stats.frames == 50
-    with pytest.raises(ValueError, match="precision must be 'float32' or 'packed'"):
-        render_file(fake("pixel", 64, 36), clip, tmp_path / "p.mkv",
-                    constant_angle(60, 0.5, 0.035), progress=False, ctx=gl_ctx,
-                    precision="half")  # fmt: skip
-    assert only(tmp_path) == ["o.mkv"]
-
-
-@pytest.mark.gl
 def test_gl_equals_cpu_backend_with_angle_track(gl_ctx, clip, tmp_path) -> None:
     """Paper method, a new model per eye (update_model every frame), lossless output."""
     track = AngleTrack(np.array([0.0, 2.0]), np.array([50.0, 130.0]), 0.5, 0.035)

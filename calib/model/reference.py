@@ -10,6 +10,7 @@ calibration camera's units (0..1 = the camera's full scale).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -27,7 +28,8 @@ class RuntimeModel:
     -> linear value; ``inv_lut`` (N, 3) linear value -> level/255, sampled uniformly on
     [``inv_lo``, ``inv_hi``] per channel.
 
-    ``pixel``: ``Ww``/``Wc`` (H, W, 3, 3), ``Aw``/``Ac`` (H, W, 3), ``kappa`` (3,), ``gamma``.
+    ``pixel``: ``Ww``/``Wc`` (H, W, 3, 3), ``Aw``/``Ac`` (H, W, 3), ``kappa`` (3,), ``gamma``,
+    and derived from those, :attr:`cam_lobe`.
     ``paper``: ``Ww`` (3, 3) = W~_w, ``Wc_inv`` (3, 3) = (W~_c at the eye)^-1; ``Aw``/``Ac``
     are unused (zeros); ``fwd_lut`` is rho_w and ``inv_lut`` is rho_c^-1 at the current eye.
     """
@@ -47,6 +49,20 @@ class RuntimeModel:
     Ac: np.ndarray | None = None
     kappa: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     gamma: float = 1.0
+
+    @functools.cached_property
+    def cam_lobe(self) -> np.ndarray:
+        """The lobe's shape seen from the calibration camera, max(R . normalize(cam_eye - p),
+        0)^gamma, (H, W) float32 in [0, 1] (pixel method; every backend reads this one).
+
+        Computed on first use from ``refl``, ``pos``, ``cam_eye`` and ``gamma`` and kept
+        (``dataclasses.replace`` makes a new model, which computes its own); assigning to
+        those fields of an existing model afterwards does not update it.
+        """
+        vc = np.asarray(self.cam_eye, np.float32) - self.pos
+        vc /= np.linalg.norm(vc, axis=-1, keepdims=True)
+        g = np.float32(self.gamma)
+        return (np.maximum(np.sum(self.refl * vc, axis=-1), 0.0) ** g).astype(np.float32)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -107,11 +123,9 @@ def lobe_change(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
     eye = np.asarray(eye, np.float32)
     v = eye - model.pos
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    vc = model.cam_eye.astype(np.float32) - model.pos
-    vc /= np.linalg.norm(vc, axis=-1, keepdims=True)
     g = np.float32(model.gamma)
     se = np.maximum(np.sum(model.refl * v, axis=-1), 0.0) ** g
-    sc = np.maximum(np.sum(model.refl * vc, axis=-1), 0.0) ** g
+    sc = model.cam_lobe
     return (model.kappa[None, None, :] * (se - sc)[..., None]).astype(np.float32)
 
 

@@ -11,24 +11,24 @@ Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
   buffer textures (:class:`viewcomp.rt.gl.context.BufferTexture`) read with ``texelFetch``,
   ~0.7x the cost of the 2D reads; draws are flushed at once and waited for with the GIL
   released (:func:`viewcomp.rt.gl.context.finish`), so other threads run meanwhile;
-- the fragment shader reads no uniforms (llvmpipe pays per pixel for each component): what
-  is fixed for this object is compiled in as ``#define`` literals (one program per variant
-  and Compensator, ~0.1-0.3 s at start), what changes per frame is handed over as flat
-  inputs by the vertex shader (:meth:`Compensator._frame_values`);
-- the pixel method's 31 per-pixel maps are float32 (8 RGBA32F texels per pixel) by default,
-  side by side in one buffer so that a pixel's texels are neighbours in memory (half the
-  cost of 8 separate textures on llvmpipe). ``precision="packed"`` stores them as 20-bit
-  fixed point (:func:`pack_pixel_maps`) in 5 RGBA32UI texels (80 instead of 128 bytes),
-  error at most half a step = (max - min) / (2^20 - 1) per value. That is not the default:
-  the tone map puts some pixel-channels exactly on the black bound, where the square-root
-  sampled inverse LUT has an unbounded slope, so a change of y by 1e-7 moves those by 2-4
-  levels (invisible, the projector's response is flat there, but beyond "<= 3 levels
-  anywhere" of docs/RUNTIME.md); everything else stays within one level;
+- what is fixed for this object (grid size, LUT domain, lobe) is compiled in as ``#define``
+  literals (one program per variant and Compensator, ~0.1-0.3 s at start), what changes
+  per frame is handed over as flat inputs by the vertex shader
+  (:meth:`Compensator._frame_values`): the same numbers in a uniform block read by the
+  fragment shader cost 10-20 % more per draw at 1080p (``bench/bench_uniforms.py``);
+- the pixel method's 31 per-pixel values are 8 float32 RGBA texels per pixel
+  (:func:`pixel_texels`), side by side in one buffer so that a pixel's texels are
+  neighbours in memory (half the cost of 8 separate textures on llvmpipe);
 - the view cache: for a held eye the pixel method's solve is linear in the tone map, so
   G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1 and d = M^-1 Ac are rendered once per eye (5 texels
   per pixel, in ``view_steps`` bands, each band copied into a buffer texture) and each draw
   reads those instead of solving (~0.65x the time at 1080p). Only a moving eye pays the
   full solve every draw.
+
+The CPU side of the formula that both this class and the mpv export
+(:mod:`viewcomp.rt.export.mpv`) need lives here once: :func:`pixel_texels` (the per-pixel
+maps' layout), :func:`inverse_position` (the inverse LUT's squared position) and
+:func:`paper_rows` (the paper method's folded matrices).
 
 Typical use::
 
@@ -43,8 +43,7 @@ Threading: call it from the thread whose GL context is current (the thread that 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from typing import Any, Literal
+from typing import Any
 
 import moderngl
 import numpy as np
@@ -60,34 +59,86 @@ from viewcomp.rt.gl.context import (
     set_sampler_units,
 )
 from viewcomp.rt.media.frames import Planes, yuv_coefficients
-from viewcomp.shaders import build_program
+from viewcomp.shaders import build_program, literal, vec_literal
 
 _METHODS = {"identity": 0, "pixel": 1, "paper": 2}
 _CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
 _VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
 _PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached"}
 _SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view".split()
-Precision = Literal["float32", "packed"]
-
-# The 32 values per pixel of the packed maps, in shader order (compensate.frag.glsl).
-PACKED_LAYOUT = (
-    [("Ww", i, j) for i in range(3) for j in range(3)]
-    + [("Aw", i, None) for i in range(3)]
-    + [("Wc", i, j) for i in range(3) for j in range(3)]
-    + [("Ac", i, None) for i in range(3)]
-    + [("refl", i, None) for i in range(3)]
-    + [("pos", i, None) for i in range(3)]
-    + [("lobe", None, None), ("zero", None, None)]
-)
-_BITS = 20  # per packed value: 16 high bits in texels 0..3 of a pixel, the low 4 in texel 4
-_Q = float((1 << _BITS) - 1)
+MAP_TEXELS = 8  # per pixel in pixel_texels
 
 
-def camera_lobe(refl: np.ndarray, pos: np.ndarray, cam_eye: np.ndarray, gamma: float) -> np.ndarray:
-    """max(R . normalize(E_cam - p), 0)^gamma, (H, W) float32, as reference.lobe_change does."""
-    vc = cam_eye.astype(np.float32) - pos
-    vc /= np.linalg.norm(vc, axis=-1, keepdims=True)
-    return (np.maximum(np.sum(refl * vc, axis=-1), 0.0) ** np.float32(gamma)).astype(np.float32)
+def pixel_texels(model: RuntimeModel) -> np.ndarray:
+    """The pixel method's per-pixel values as (H, W, 8, 4) float32 texels, in the order that
+    ``pixel_maps`` of compensate_core.glsl reads: texels 0..2 = row i of Ww | Aw[i], 3..5 =
+    row i of Wc | Ac[i], 6 = R | 0, 7 = p (metres) | the camera's lobe
+    (:attr:`RuntimeModel.cam_lobe`).
+
+    Raises:
+        ValueError: an array missing, of the wrong shape or not finite, naming it.
+    """
+    h, w = model.shape
+    out = np.zeros((h, w, MAP_TEXELS, 4), np.float32)
+    for k, (mat, amb) in enumerate((("Ww", "Aw"), ("Wc", "Ac"))):
+        if getattr(model, mat) is None or getattr(model, amb) is None:
+            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
+        out[:, :, 3 * k : 3 * k + 3, :3] = _f32(getattr(model, mat), (h, w, 3, 3), mat)
+        out[:, :, 3 * k : 3 * k + 3, 3] = _f32(getattr(model, amb), (h, w, 3), amb)
+    out[:, :, 6, :3] = _f32(model.refl, (h, w, 3), "refl")
+    out[:, :, 7, :3] = _f32(model.pos, (h, w, 3), "pos")
+    _f32(model.cam_eye, (3,), "cam_eye")
+    lobe = model.cam_lobe
+    if not np.all(np.isfinite(lobe)):
+        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and gamma")
+    out[:, :, 7, 3] = lobe
+    return out
+
+
+def inverse_scale(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> np.ndarray:
+    """(N - 1)^2 / (hi - lo) per channel, float64 (3,): the inverse LUT's squared position
+    t2 per unit of value (``lut_inverse_sq`` in compensate_core.glsl: position sqrt(t2), t2
+    in [0, (N - 1)^2])."""
+    lo = np.asarray(inv_lo, np.float64)
+    span = np.maximum(np.asarray(inv_hi, np.float64) - lo, 1e-12)
+    return (n_inv - 1) ** 2 / span
+
+
+def inverse_position(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> dict[str, np.ndarray]:
+    """The pixel method's ``pixel_t2(y, scale, off, lo, hi)`` constants (compensate_core.glsl),
+    float64 (3,) each: t2 = clamp(scale y - off, lo, hi) is the squared LUT position of y.
+
+    It equals the reference's clamp of y to [0, 1], then of the position to
+    [0, (N - 1)^2], as one clamp: both are increasing, so the inner bounds map to the outer
+    ones.
+    """
+    s = inverse_scale(inv_lo, inv_hi, n_inv)
+    lo = np.asarray(inv_lo, np.float64)
+    top = float((n_inv - 1) ** 2)
+    return {
+        "scale": s, "off": s * lo,
+        "lo": np.clip(-s * lo, 0.0, top), "hi": np.clip(s * (1.0 - lo), 0.0, top),
+    }  # fmt: skip
+
+
+def paper_rows(
+    Ww: np.ndarray,
+    Wc_inv: np.ndarray,
+    inv_lo: np.ndarray,
+    inv_hi: np.ndarray,
+    n_inv: int,
+    alpha: float,
+    beta: float,
+) -> np.ndarray:
+    """The paper method's ``paper_t2`` rows (compensate_core.glsl), (3, 4) float64: row i =
+    (A[i], c[i]) with A = diag(s) alpha Wc_inv Ww and c = s (beta Wc_inv 1 - lo), s =
+    :func:`inverse_scale`, so that t2 = A fwd(I) + c is the inverse LUT's squared position."""
+    s = inverse_scale(inv_lo, inv_hi, n_inv)
+    wc_inv = np.asarray(Wc_inv, np.float64)
+    out = np.empty((3, 4), np.float64)
+    out[:, :3] = s[:, None] * (alpha * (wc_inv @ np.asarray(Ww, np.float64)))
+    out[:, 3] = s * (beta * wc_inv.sum(axis=1) - np.asarray(inv_lo, np.float64))
+    return out
 
 
 def _inv_pairs(inv_lut: np.ndarray, n: int) -> np.ndarray:
@@ -109,140 +160,6 @@ def _f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
     return arr
 
 
-def _groups(model: RuntimeModel, cam_lobe: np.ndarray) -> list[np.ndarray]:
-    """The packed layout's source arrays as (H*W, c) views, in ``PACKED_LAYOUT`` order."""
-    n = model.shape[0] * model.shape[1]
-    return [
-        model.Ww.reshape(n, 9),  # type: ignore[union-attr]
-        model.Aw.reshape(n, 3),  # type: ignore[union-attr]
-        model.Wc.reshape(n, 9),  # type: ignore[union-attr]
-        model.Ac.reshape(n, 3),  # type: ignore[union-attr]
-        model.refl.reshape(n, 3),
-        model.pos.reshape(n, 3),
-        cam_lobe.reshape(n, 1),
-    ]  # 31 values; value 31 stays 0
-
-
-def _columns(model: RuntimeModel, cam_lobe: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
-    """(first value index, (c, H*W) contiguous copy) per group: fast reductions per value."""
-    k = 0
-    for g in _groups(model, cam_lobe):
-        yield k, np.ascontiguousarray(g.T)
-        k += g.shape[1]
-
-
-def _pixel_arrays(model: RuntimeModel) -> tuple[RuntimeModel, np.ndarray]:
-    """The pixel method's arrays checked (shape, finite, float32) and the camera's lobe."""
-    from dataclasses import replace
-
-    h, w = model.shape
-    checked = {}
-    for key in ("Ww", "Wc"):
-        if getattr(model, key) is None:
-            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
-        checked[key] = _f32(getattr(model, key), (h, w, 3, 3), key)
-    for key in ("Aw", "Ac"):
-        if getattr(model, key) is None:
-            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
-        checked[key] = _f32(getattr(model, key), (h, w, 3), key)
-    checked["refl"] = _f32(model.refl, (h, w, 3), "refl")
-    checked["pos"] = _f32(model.pos, (h, w, 3), "pos")
-    m = replace(model, **checked)
-    lobe = camera_lobe(m.refl, m.pos, _f32(model.cam_eye, (3,), "cam_eye"), model.gamma)
-    if not np.all(np.isfinite(lobe)):
-        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and gamma")
-    return m, lobe
-
-
-def field_ranges(model: RuntimeModel, cam_lobe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(min, max) over the grid of each of the 32 packed values, float32 (32,) each."""
-    lo = np.zeros(32, np.float32)
-    hi = np.zeros(32, np.float32)
-    for k, cols in _columns(model, cam_lobe):
-        c = cols.shape[0]
-        lo[k : k + c] = cols.min(axis=1)
-        hi[k : k + c] = cols.max(axis=1)
-    return lo, hi
-
-
-def pack_pixel_maps(
-    model: RuntimeModel,
-    cam_lobe: np.ndarray,
-    ranges: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """The pixel method's per-pixel values as 20-bit fixed point in 5 RGBA32UI images.
-
-    Value k (``PACKED_LAYOUT``) is ``q * scale[k] + offset[k]`` with q = round((v - min) /
-    scale) in 0..2^20-1, scale = (max - min) / (2^20 - 1) over the grid. Images 0..3
-    (H, W, 4) uint32 hold the top 16 bits of q: value 8t + c in the low and 8t + 4 + c in the
-    high half of channel c of image t; image 4 holds the low 4 bits: value 8t + 4h + c in
-    bits 4 (2t + h) .. +3 of its channel c.
-
-    Returns:
-        (5 images, scale (8, 4) float32, offset (8, 4) float32).
-    """
-    h, w = model.shape
-    lo, hi = field_ranges(model, cam_lobe) if ranges is None else ranges
-    scale = ((hi.astype(np.float64) - lo) / _Q).astype(np.float32)
-    images = [np.zeros((h * w, 4), np.uint32) for _ in range(5)]
-    for k0, cols in _columns(model, cam_lobe):
-        for j in range(cols.shape[0]):
-            k = k0 + j
-            if scale[k] > 0:
-                v = cols[j] - lo[k]
-                v *= np.float32(1.0 / float(scale[k]))
-                np.rint(v, out=v)
-                np.clip(v, 0.0, _Q, out=v)
-                q = v.astype(np.uint32)
-            else:
-                q = np.zeros(h * w, np.uint32)
-            t, half, c = k // 8, (k % 8) // 4, k % 4
-            images[t][:, c] |= (q >> np.uint32(4)) << np.uint32(16 * half)
-            images[4][:, c] |= (q & np.uint32(15)) << np.uint32(4 * (2 * t + half))
-    return [img.reshape(h, w, 4) for img in images], scale.reshape(8, 4), lo.reshape(8, 4)
-
-
-def unpack_pixel_maps(
-    images: list[np.ndarray], scale: np.ndarray, offset: np.ndarray
-) -> dict[str, np.ndarray]:
-    """The values the shader reconstructs from :func:`pack_pixel_maps` (float32; for tests)."""
-    s, o = scale.ravel(), offset.ravel()
-    h, w = images[0].shape[:2]
-    out = {
-        "Ww": np.empty((h, w, 3, 3), np.float32), "Aw": np.empty((h, w, 3), np.float32),
-        "Wc": np.empty((h, w, 3, 3), np.float32), "Ac": np.empty((h, w, 3), np.float32),
-        "refl": np.empty((h, w, 3), np.float32), "pos": np.empty((h, w, 3), np.float32),
-        "lobe": np.empty((h, w), np.float32), "zero": np.empty((h, w), np.float32),
-    }  # fmt: skip
-    for k, (name, i, j) in enumerate(PACKED_LAYOUT):
-        t, half, c = k // 8, (k % 8) // 4, k % 4
-        top = (images[t][..., c] >> np.uint32(16 * half)) & np.uint32(0xFFFF)
-        low = (images[4][..., c] >> np.uint32(4 * (2 * t + half))) & np.uint32(15)
-        q = (top << np.uint32(4)) | low
-        v = q.astype(np.float32) * np.float32(s[k]) + np.float32(o[k])
-        if j is not None:
-            out[name][..., i, j] = v
-        elif i is not None:
-            out[name][..., i] = v
-        else:
-            out[name][...] = v
-    return out
-
-
-def _lit(x: float) -> str:
-    """A float32 value as a GLSL literal that parses back to the same float32."""
-    v = float(np.float32(x))
-    if not math.isfinite(v):
-        raise ValueError(f"cannot compile the non-finite value {x!r} into the shader")
-    text = f"{v:.9g}"
-    return text if any(c in text for c in ".en") else text + ".0"
-
-
-def _vec(values: Any) -> str:
-    vals = [_lit(v) for v in np.asarray(values, np.float64).ravel()]
-    return f"vec{len(vals)}({', '.join(vals)})"
-
-
 class Compensator:
     """Runs the compensation shader for one :class:`RuntimeModel` on an (H, W) grid.
 
@@ -251,8 +168,6 @@ class Compensator:
             needs only the LUTs). Per-pixel arrays are uploaded once here.
         ctx: a moderngl context (>= 3.3) current on this thread; ``None`` creates a
             standalone EGL one, which this object then owns and releases.
-        precision: the pixel method's per-pixel maps: ``"float32"`` exact copies (default) or
-            ``"packed"`` 20-bit fixed point (faster, near-black caveat above).
         view_cache: pixel method: once the eye has been the same for ``view_hold`` draws in
             a row, solve the per-pixel system for that eye once (an extra ~5 draws' work)
             and draw from that cache (~0.7x the per-frame time on llvmpipe) until the eye
@@ -274,21 +189,17 @@ class Compensator:
         self,
         model: RuntimeModel,
         ctx: moderngl.Context | None = None,
-        precision: Precision = "float32",
         view_cache: bool = True,
         view_hold: int = 1,
         view_steps: int = 4,
         gl_loader: ProcAddress | None = None,
     ) -> None:
-        if precision not in ("float32", "packed"):
-            raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
         if not isinstance(model, RuntimeModel):
             raise ValueError(f"model must be a RuntimeModel, got {type(model).__name__}")
         if int(view_hold) < 0 or int(view_steps) < 1:
             raise ValueError(
                 f"need view_hold >= 0 and view_steps >= 1, got {view_hold} and {view_steps}"
             )
-        self._precision = precision
         self.view_cache = bool(view_cache)
         self.view_hold = int(view_hold)
         self.view_steps = int(view_steps)
@@ -362,17 +273,17 @@ class Compensator:
         }  # fmt: skip
         # Compiled-in constants (#define NAME literal) of every variant of this object.
         self._consts: dict[str, str | int] = {"GRID_W": w, "GRID_H": h, "N_INV": n_inv}
-        self.packed = False
         self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
         self._inv_lo = _f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
         self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
         if model.method == "pixel":
             units.update(self._upload_pixel_maps(model))
-            self._consts["KAPPA"] = _vec(_f32(model.kappa, (3,), "kappa"))
+            self._consts["KAPPA"] = vec_literal(_f32(model.kappa, (3,), "kappa"))
             if not math.isfinite(float(model.gamma)):
                 raise ValueError(f"gamma must be finite, got {model.gamma}")
-            self._consts["GAMMA"] = _lit(model.gamma)
-            self._consts.update(self._sq_consts())
+            self._consts["GAMMA"] = literal(model.gamma)
+            sq = inverse_position(self._inv_lo, self._inv_hi, n_inv)
+            self._consts.update({f"SQ_{k.upper()}": vec_literal(v) for k, v in sq.items()})
         if model.method == "paper":
             self._Ww = _f32(model.Ww, (3, 3), "Ww").astype(np.float64)
             if model.Wc_inv is None:
@@ -391,25 +302,6 @@ class Compensator:
         self.set_tone(1.0, 0.0)
         self._yuv_key: tuple[str, str] = ("bt709", "limited")
 
-    def _inv_scale(self) -> np.ndarray:
-        """(N - 1)^2 / (hi - lo) per channel: the inverse LUT's squared position t2 per unit
-        of value (``lut_inverse_sq`` in the shader: position sqrt(t2), t2 in [0, (N - 1)^2])."""
-        span = np.maximum(self._inv_hi - self._inv_lo, 1e-12)
-        return (self._n_inv - 1) ** 2 / span
-
-    def _sq_consts(self) -> dict[str, str]:
-        """SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI: t2 = clamp(SQ_SCALE y - SQ_OFF, SQ_LO, SQ_HI) is
-        the squared LUT position of the pixel method's y. It equals the reference's clamp of y
-        to [0, 1], then of the position to [0, (N - 1)^2], as one clamp: both are increasing,
-        so the inner bounds map to the outer ones."""
-        s, lo = self._inv_scale(), self._inv_lo
-        top = float((self._n_inv - 1) ** 2)
-        return {
-            "SQ_SCALE": _vec(s), "SQ_OFF": _vec(s * lo),
-            "SQ_LO": _vec(np.clip(-s * lo, 0.0, top)),
-            "SQ_HI": _vec(np.clip(s * (1.0 - lo), 0.0, top)),
-        }  # fmt: skip
-
     def _view_block(self, n: int) -> tuple[int, int]:
         """(bx, by): ``n`` texels of a pixel as a bx x by block of the view cache's target.
 
@@ -426,42 +318,9 @@ class Compensator:
             f"(GL_MAX_TEXTURE_SIZE {max_size}); use view_cache=False"
         )
 
-    def _interleaved(self, texels: list[np.ndarray], fmt: str) -> BufferTexture:
-        """One buffer texture holding ``texels[k]`` (H, W, 4) of pixel (x, y) at (y W + x) n + k."""
-        h, w, n = self.height, self.width, len(texels)
-        data = np.empty((h, w, n, 4), texels[0].dtype)
-        for k, img in enumerate(texels):
-            data[:, :, k, :] = img
-        self._consts["MAP_N"] = n
-        return self._buffer_texture(data, fmt)
-
     def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
-        h, w = model.shape
-        m, lobe = _pixel_arrays(model)
-        if self._precision == "packed":
-            images, scale, offset = pack_pixel_maps(m, lobe)
-            maps = self._interleaved(images, "rgba32ui")
-            del images
-            for k in range(8):
-                self._consts[f"Q_SCALE{k}"] = _vec(scale[k])
-                self._consts[f"Q_OFFSET{k}"] = _vec(offset[k])
-            self.packed = True
-            return {"u_maps": maps}
-        texels = []
-        for mat, amb in ((m.Ww, m.Aw), (m.Wc, m.Ac)):
-            for row in range(3):
-                rgba = np.empty((h, w, 4), np.float32)
-                rgba[..., :3] = mat[:, :, row, :]
-                rgba[..., 3] = amb[..., row]
-                texels.append(rgba)
-        rgba = np.zeros((h, w, 4), np.float32)
-        rgba[..., :3] = m.refl
-        texels.append(rgba)
-        rgba = np.empty((h, w, 4), np.float32)
-        rgba[..., :3] = m.pos
-        rgba[..., 3] = lobe
-        texels.append(rgba)
-        return {"u_maps": self._interleaved(texels, "rgba32f")}
+        """The maps as one buffer texture: texel k of pixel (x, y) at 8 (y W + x) + k."""
+        return {"u_maps": self._buffer_texture(pixel_texels(model), "rgba32f")}
 
     def _program(self, method: int) -> tuple[Any, Any]:
         """(program, vertex array) of shader ``method`` on the current input, compiled once."""
@@ -469,9 +328,7 @@ class Compensator:
         yuv = self._yuv_key if inp == 1 else None
         key = (method, inp, yuv)
         if key not in self._programs:
-            defines: dict[str, str | int | float] = {
-                **self._consts, "METHOD": method, "INPUT": inp, "PACKED": int(self.packed),
-            }  # fmt: skip
+            defines: dict[str, str | int | float] = {**self._consts, "METHOD": method, "INPUT": inp}
             if yuv is not None:
                 k = yuv_coefficients(*yuv)  # type: ignore[arg-type]
                 defines["YUV_K"] = f"ivec4({k.cy}, {k.cr_r}, {k.cb_b}, {k.y_off})"
@@ -494,11 +351,8 @@ class Compensator:
             out[0, 3] = self.alpha
             out[1, 0] = self.beta
         elif self.method == "paper":
-            s = self._inv_scale()
-            a = s[:, None] * (self.alpha * (self._Wc_inv @ self._Ww))
-            c = s * (self.beta * self._Wc_inv.sum(axis=1) - self._inv_lo)
-            out[:3, :3] = a
-            out[:3, 3] = c
+            out[:3] = paper_rows(self._Ww, self._Wc_inv, self._inv_lo, self._inv_hi,
+                                 self._n_inv, self.alpha, self.beta)  # fmt: skip
         return out.tobytes()
 
     def _shader_method(self) -> int:

@@ -125,7 +125,6 @@ class _Engine:
         model: RuntimeModel,
         identity: bool,
         ctx: Any,
-        precision: str = "float32",
     ) -> None:
         if backend not in ("gl", "cpu"):
             raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
@@ -134,7 +133,6 @@ class _Engine:
         self.model = model  # what the GL side holds
         self.next_model = model  # what the next submit uses
         self.ctx = ctx
-        self.precision = precision
         self.alpha, self.beta = 1.0, 0.0
         self.eye = np.asarray(model.cam_eye, np.float32)
         self.gl: Any = None
@@ -148,7 +146,7 @@ class _Engine:
         if self.gl is not None:
             self.gl.release()
             self.gl = None
-        self.gl = Compensator(model, self.ctx, precision=self.precision)  # type: ignore[arg-type]
+        self.gl = Compensator(model, self.ctx)
         self.gl.identity = self.identity
 
     def set_params(self, p: FrameParamsLike | None, eye: np.ndarray) -> None:
@@ -243,7 +241,6 @@ def render_file(
     preset: str = DEFAULT_PRESET,
     progress: bool = True,
     ctx: Any = None,
-    precision: str = "float32",
 ) -> RenderStats:
     """Compensate an image or a video file for the projector (see the module docstring).
 
@@ -258,8 +255,6 @@ def render_file(
             ``veryfast`` by default; the preset applies to libx264/libx265).
         progress: show a tqdm bar with frames per second (stderr).
         ctx: an existing moderngl context for the GL backend (else one is made and freed).
-        precision: the GL pixel method's maps, ``"float32"`` (exact) or ``"packed"`` (20-bit,
-            ~25 % faster shader; see :class:`viewcomp.rt.gl.compensator.Compensator`).
 
     Returns:
         RenderStats (frames rendered, wall seconds, start-up, time in ``comp``).
@@ -272,8 +267,6 @@ def render_file(
     t_start = time.perf_counter()
     if backend not in ("gl", "cpu"):
         raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
-    if precision not in ("float32", "packed"):
-        raise ValueError(f"precision must be 'float32' or 'packed', got {precision!r}")
     model = _check_comp(comp)
     src, dst = Path(input_path), Path(output_path)
     if is_image(src):
@@ -282,7 +275,7 @@ def render_file(
         frame = _read_image(src, model.shape)
         eye0 = np.asarray(eye_track(0.0), np.float32)
         t_params = 0.0
-        eng = _Engine(backend, model, identity, ctx, precision)
+        eng = _Engine(backend, model, identity, ctx)
         try:
             params = None
             if not identity:
@@ -297,7 +290,7 @@ def render_file(
         seconds = time.perf_counter() - t_start
         return RenderStats("image", 1, seconds, seconds, t_params)
     return _render_video(comp, model, src, dst, eye_track, backend, identity, crf, codec,
-                         preset, progress, ctx, t_start, precision)  # fmt: skip
+                         preset, progress, ctx, t_start)  # fmt: skip
 
 
 def _render_video(
@@ -314,14 +307,13 @@ def _render_video(
     progress: bool,
     ctx: Any,
     t_start: float,
-    precision: str,
 ) -> RenderStats:
     h, w = model.shape
     clock = {"params": 0.0, "first": None}
 
     with VideoReader(src, fit=(w, h)) as reader:
         info = reader.info
-        eng = _Engine(backend, model, identity, ctx, precision)
+        eng = _Engine(backend, model, identity, ctx)
         try:
             writer = VideoWriter(dst, w, h, info.rate, codec=codec, crf=crf,
                                  colorspace=info.colorspace, audio=reader.audio_stream,

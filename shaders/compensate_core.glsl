@@ -1,0 +1,127 @@
+// The per-pixel formula of docs/RUNTIME.md on values already fetched: the one GLSL source of
+// it, included by the GL compensator (compensate.frag.glsl) and by the mpv export
+// (mpv_hook.glsl). The numpy reference is viewcomp.calib.model.reference.compensate.
+//
+// Nothing here reads a texture, a uniform or a macro: the including file fetches the
+// per-pixel values and passes the constants as arguments (literals in both hosts, which the
+// compiler folds). The one thing it must define is how the inverse LUT is read:
+vec2 inv_pair(int c, int i);  // (inv_lut[i, c], inv_lut[i + 1, c]); at i = N - 1 the last twice
+
+// The pixel method's per-pixel values at one grid pixel: rows of Ww | Aw (w0..w2), rows of
+// Wc | Ac (c0..c2), the unit reflection vector R, the surface point p (metres) | the
+// camera's lobe max(R . normalize(cam_eye - p), 0)^gamma (RuntimeModel.cam_lobe).
+struct PixelMaps {
+    vec4 w0, w1, w2, c0, c1, c2;
+    vec3 refl;
+    vec4 pos;
+};
+
+// The 8 texels of one pixel as stored (viewcomp.rt.gl.compensator.pixel_texels) -> PixelMaps.
+PixelMaps pixel_maps(vec4 t0, vec4 t1, vec4 t2, vec4 t3, vec4 t4, vec4 t5, vec4 t6, vec4 t7) {
+    PixelMaps m;
+    m.w0 = t0;
+    m.w1 = t1;
+    m.w2 = t2;
+    m.c0 = t3;
+    m.c1 = t4;
+    m.c2 = t5;
+    m.refl = t6.xyz;
+    m.pos = t7;
+    return m;
+}
+
+// The specular lobe's change from the camera to the eye, per camera channel:
+// ds = kappa ((R . V_eye)^+^gamma - the camera's lobe) (reference.lobe_change).
+vec3 lobe_change(PixelMaps m, vec3 eye, vec3 kappa, float gamma) {
+    float lobe_eye = pow(max(dot(m.refl, normalize(eye - m.pos.xyz)), 0.0), gamma);
+    return kappa * (lobe_eye - m.pos.w);
+}
+
+// The adjugate of M = Wc + diag(ds) Ww at the eye as columns k0, k1, k2 (M^-1 = [k0 k1 k2]
+// / det); returns det.
+float adjugate(PixelMaps m, vec3 eye, vec3 kappa, float gamma,
+               out vec3 k0, out vec3 k1, out vec3 k2) {
+    vec3 ds = lobe_change(m, eye, kappa, gamma);
+    vec3 r0 = m.c0.xyz + ds.x * m.w0.xyz;
+    vec3 r1 = m.c1.xyz + ds.y * m.w1.xyz;
+    vec3 r2 = m.c2.xyz + ds.z * m.w2.xyz;
+    k0 = cross(r1, r2);
+    k1 = cross(r2, r0);
+    k2 = cross(r0, r1);
+    return dot(r0, k0);
+}
+
+// Pixel method, solved: the projector light y with M y = alpha (Ww pw + Aw) + beta - Ac
+// (unclamped; pw = the forward LUT of the frame's levels).
+vec3 solve_pixel(PixelMaps m, vec3 pw, vec3 eye, float alpha, float beta, vec3 kappa,
+                 float gamma) {
+    vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
+        + vec3(m.w0.w, m.w1.w, m.w2.w);
+    vec3 b = alpha * cw + beta - vec3(m.c0.w, m.c1.w, m.c2.w);
+    vec3 k0, k1, k2;
+    float det = adjugate(m, eye, kappa, gamma, k0, k1, k2);
+    return (k0 * b.x + k1 * b.y + k2 * b.z) / det;
+}
+
+// Pixel method: the inverse LUT's squared position t2 of y. The reference clamps y to
+// [0, 1], then the position to [0, (N - 1)^2]; both maps are increasing, so that is one
+// clamp with folded bounds: t2 = clamp(scale y - off, lo, hi)
+// (viewcomp.rt.gl.compensator.inverse_position, on the CPU).
+vec3 pixel_t2(vec3 y, vec3 scale, vec3 off, vec3 lo, vec3 hi) {
+    return clamp(scale * y - off, lo, hi);
+}
+
+// The view cache of one pixel for a held eye (docs/RUNTIME.md): y = alpha (G pw + a) +
+// beta b - d with G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1, d = M^-1 Ac, every row already
+// scaled to t2 as pixel_t2 does (d also shifted by off). Out: rows i of (G | a) in g0..g2.
+void view_terms(PixelMaps m, vec3 eye, vec3 kappa, float gamma, vec3 scale, vec3 off,
+                out vec4 g0, out vec4 g1, out vec4 g2, out vec3 b, out vec3 d) {
+    vec3 k0, k1, k2;
+    float det = adjugate(m, eye, kappa, gamma, k0, k1, k2);
+    vec3 s = scale / det;
+    vec3 gc0 = (k0 * m.w0.x + k1 * m.w1.x + k2 * m.w2.x) * s;  // column 0 of G
+    vec3 gc1 = (k0 * m.w0.y + k1 * m.w1.y + k2 * m.w2.y) * s;
+    vec3 gc2 = (k0 * m.w0.z + k1 * m.w1.z + k2 * m.w2.z) * s;
+    vec3 a = (k0 * m.w0.w + k1 * m.w1.w + k2 * m.w2.w) * s;
+    b = (k0 + k1 + k2) * s;
+    d = (k0 * m.c0.w + k1 * m.c1.w + k2 * m.c2.w) * s + off;
+    g0 = vec4(gc0.x, gc1.x, gc2.x, a.x);
+    g1 = vec4(gc0.y, gc1.y, gc2.y, a.y);
+    g2 = vec4(gc0.z, gc1.z, gc2.z, a.z);
+}
+
+// Pixel method from the view cache: t2 (unclamped) of the frame's pw.
+vec3 cached_t2(vec4 g0, vec4 g1, vec4 g2, vec3 b, vec3 d, vec3 pw, float alpha, float beta) {
+    vec3 gp = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
+    return alpha * gp + beta * b - d;
+}
+
+// Paper method: t2 = A pw + c with row i of A | c in a_i, folded on the CPU from alpha,
+// beta, Ww, Wc_inv and the LUT domain (viewcomp.rt.gl.compensator.paper_rows), clamped to
+// [0, top] with top = (N - 1)^2.
+vec3 paper_t2(vec4 a0, vec4 a1, vec4 a2, vec3 pw, float top) {
+    vec3 t2 = vec3(dot(a0.xyz, pw), dot(a1.xyz, pw), dot(a2.xyz, pw)) + vec3(a0.w, a1.w, a2.w);
+    return clamp(t2, 0.0, top);
+}
+
+// Linear interpolation in the inverse LUT (reference.lut_inverse) at the squared position
+// t2 in [0, (N - 1)^2]: the LUT is sampled uniformly in the square root of the normalised
+// value, so the position is t = sqrt(t2). t >= 0 truncates to its floor, and at t = N - 1
+// the last pair (inv_lut[N - 1] twice) applies. Returns 0..1.
+vec3 lut_inverse_sq(vec3 t2) {
+    vec3 t = sqrt(t2);
+    ivec3 i0 = ivec3(t);
+    vec3 f = t - vec3(i0);
+    vec2 ab0 = inv_pair(0, i0.x);
+    vec2 ab1 = inv_pair(1, i0.y);
+    vec2 ab2 = inv_pair(2, i0.z);
+    vec3 a = vec3(ab0.x, ab1.x, ab2.x);
+    vec3 b = vec3(ab0.y, ab1.y, ab2.y);
+    return a + (b - a) * f;
+}
+
+// The output level: roundEven(255 clamp(out, 0, 1)) (= np.rint) as level / 255, which any
+// float -> unorm8 conversion returns exactly as that level.
+vec3 quantise(vec3 result) {
+    return roundEven(clamp(result, 0.0, 1.0) * 255.0) / 255.0;
+}

@@ -1,0 +1,32 @@
+#version 330 core
+// Runs the body of an exported mpv user shader (`viewcomp export-mpv`, its HOOK section,
+// included as "mpv_export.glsl" by the caller's loader) as a fragment shader of this
+// project's GL path, with what mpv provides around it: HOOKED_pos (the texture coordinate of
+// this fragment's grid pixel, from fullscreen.vert.glsl), HOOKED_tex (the frame,
+// normalised), every TEXTURE section as a sampler of its name and the PARAM angle as a
+// uniform. The output is hook() at the grid's size: what mpv shows fullscreen on the
+// projector whose grid was calibrated.
+
+in vec2 v_uv;
+out vec4 frag_color;
+
+uniform sampler2D HOOKED_raw;
+uniform sampler2D VC_MAP0;
+uniform sampler2D VC_MAP1;
+uniform sampler2D VC_MAP2;
+uniform sampler2D VC_MAP3;
+uniform sampler2D VC_MAP4;
+uniform sampler2D VC_MAP5;
+uniform sampler2D VC_MAP6;
+uniform sampler2D VC_MAP7;
+uniform sampler2D VC_LUT;
+uniform float angle;
+
+#define HOOKED_pos v_uv
+#define HOOKED_tex(pos) texture(HOOKED_raw, pos)
+
+#include "mpv_export.glsl"
+
+void main() {
+    frag_color = hook();
+}

@@ -1,0 +1,33 @@
+// What the mpv hooks of `viewcomp export-mpv` (mpv_pixel.glsl, mpv_paper.glsl) share: the
+// formula (compensate_core.glsl, as in the GL compensator) and mpv's sampling of the LUTs.
+// mpv runs a hook as a HOOK OUTPUT pass: hook() per output pixel, with HOOKED_pos (the
+// pixel's texture coordinate, 0..1, row 0 of the image at 0), HOOKED_tex (the frame, 0..1)
+// and the TEXTURE sections as samplers of their names. viewcomp.rt.export.mpv assembles a
+// hook: its #define lines (literals) first, then the file with its includes expanded.
+//
+// Defines: VC_LUT_W the width of VC_LUT; VC_N_INV the inverse LUT's entries N.
+
+#include "compensate_core.glsl"
+
+// VC_LUT row 0: the forward LUT at levels 0..255; row 1: the inverse LUT's N entries (RGB).
+vec4 vc_lut(float x, float row) {
+    return texture(VC_LUT, vec2((x + 0.5) / VC_LUT_W, row));
+}
+
+vec2 inv_pair(int c, int i) {
+    vec4 a = vc_lut(float(i), 0.75);
+    vec4 b = vc_lut(float(min(i + 1, VC_N_INV - 1)), 0.75);
+    return vec2(a[c], b[c]);
+}
+
+// Forward LUT at fractional levels 0..255 (video after mpv's yuv -> RGB is not on integer
+// levels): linear interpolation, as reference.lut_forward.
+vec3 vc_forward(vec3 level) {
+    vec3 t = clamp(level, 0.0, 255.0);
+    vec3 i0 = min(floor(t), vec3(254.0));
+    vec3 a = vec3(vc_lut(i0.r, 0.25).r, vc_lut(i0.g, 0.25).g, vc_lut(i0.b, 0.25).b);
+    vec3 b = vec3(vc_lut(i0.r + 1.0, 0.25).r, vc_lut(i0.g + 1.0, 0.25).g,
+                  vc_lut(i0.b + 1.0, 0.25).b);
+    return a + (b - a) * (t - i0);
+}
+
