@@ -30,7 +30,13 @@ from viewcomp.calib.comp.tonemap import (
     choose_tone_map,
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
-from viewcomp.calib.model.reference import RuntimeModel, compensate, lobe_change, white_response
+from viewcomp.calib.model.reference import (
+    RuntimeModel,
+    compensate,
+    screen_mixing_at,
+    tone_terms,
+    white_response,
+)
 
 if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
@@ -169,24 +175,20 @@ class Compensation:
             u = cw @ model.Wc_inv.T.astype(np.float64)
             v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
             return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
-        m_inv, v, c = self._view_terms(small, eye)
-        u = np.einsum("hwij,hwj->hwi", m_inv, cw)
+        u, v, c = self._view_terms(small, cw, eye)
         scale = max(float(cw.mean()), 1e-4)
         return choose_tone_map(u, v, c, 0.0, 1.0, self.lam, beta_weight=self.mu, beta_scale=scale)
 
     def _view_terms(
-        self, small: RuntimeModel, eye: np.ndarray
+        self, small: RuntimeModel, cw: np.ndarray, eye: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per thumbnail pixel: M^-1 at the eye, M^-1 1 and -M^-1 Ac (float64), for the
-        last (grid, eye) asked for: a held eye costs the inversion once."""
+        """:func:`tone_terms` per thumbnail pixel (float64); M^-1 is kept for the last
+        (grid, eye) asked for, so a held eye costs the inversion once."""
         key = (small.shape, tuple(np.asarray(eye, np.float64).tolist()))
         if self._view is None or self._view[0] != key:
-            ds = lobe_change(small, eye).astype(np.float64)
-            m_inv = np.linalg.inv(small.Wc + ds[..., :, None] * small.Ww)
-            v = m_inv.sum(axis=-1)
-            c = -np.einsum("hwij,hwj->hwi", m_inv, small.Ac)
-            self._view = (key, (m_inv, v, c))
-        return self._view[1]
+            m = screen_mixing_at(small, eye).astype(np.float64)
+            self._view = (key, np.linalg.inv(m))
+        return tone_terms(self._view[1], cw, small.Ac.astype(np.float64))
 
     def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye, the time (s)."""

@@ -37,6 +37,7 @@ from viewcomp.calib.eval.metrics import delta_e2000, psnr, sse, ssim
 from viewcomp.calib.eval.testimages import natural_images, uniform
 from viewcomp.calib.fit.calibrate import Calibration, calibrate
 from viewcomp.calib.io.captureset import capture_set_from_raw
+from viewcomp.calib.model.reference import tone_terms
 from viewcomp.calib.sim.simcamera import SimCamera
 from viewcomp.calib.sim.simulate import capture_patterns
 from viewcomp.calib.sim.simulator import (
@@ -176,16 +177,15 @@ class World:
             + aw[rows][:, cols]
         )
         tone = choose_tone_map(
-            np.einsum("hwij,hwj->hwi", mi, cw_s),
-            mi.sum(axis=-1),
-            -np.einsum("hwij,hwj->hwi", mi, ac[rows][:, cols]),
+            *tone_terms(mi, cw_s, ac[rows][:, cols]),
             sim.projector.leak,
             1.0,
             self.lam,
             beta_weight=self.mu,
             beta_scale=max(float(cw_s.mean()), 1e-4),
         )
-        p = np.einsum("hwij,hwj->hwi", m_inv, tone.alpha * cw + tone.beta - ac)
+        pu, pv, pc = tone_terms(m_inv, cw, ac)
+        p = tone.alpha * pu + tone.beta * pv + pc
         return np.rint(sim.projector.response_inverse(p)).astype(np.uint8)
 
 

@@ -137,6 +137,36 @@ def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
     return pw @ model.Ww.T
 
 
+def screen_mixing_at(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
+    """M(x) = Wc(x) + diag(ds(x)) Ww(x): the real screen's colour mixing seen from ``eye``
+    (pixel method), so that the screen shows M(x) f(I) + Ac(x) there. (H, W, 3, 3)."""
+    ds = lobe_change(model, eye)
+    return model.Wc + ds[..., :, None] * model.Ww
+
+
+def tone_terms(
+    m_inv: np.ndarray, white: np.ndarray, ambient: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The projector light a tone map (alpha, beta) asks for, as alpha u + beta v + c.
+
+    With the target T = alpha C_w + beta and the screen M f + A, the light is
+    f = M^-1 (T - A) = alpha M^-1 C_w + beta M^-1 1 - M^-1 A. One source for the tone map's
+    choice (docs/MODEL.md), the GL view cache's CPU side and the evaluation's oracle.
+
+    Args:
+        m_inv: (..., 3, 3) inverse of the screen's mixing at the eye.
+        white: (..., 3) C_w, what the white screen shows (linear camera units).
+        ambient: (..., 3) A, the screen's ambient term (same units).
+
+    Returns:
+        u = M^-1 C_w, v = M^-1 1, c = -M^-1 A, each (..., 3), in the dtype of ``m_inv``.
+    """
+    u = np.einsum("...ij,...j->...i", m_inv, white)
+    v = m_inv.sum(axis=-1)
+    c = -np.einsum("...ij,...j->...i", m_inv, ambient)
+    return u, v, c
+
+
 def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray) -> np.ndarray:
     """Solve for the projector signal that shows ``target`` (H, W, 3) at ``eye``.
 
@@ -145,8 +175,7 @@ def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray
     ``paper`` (valid range [inv_lo, inv_hi]).
     """
     if model.method == "pixel":
-        ds = lobe_change(model, eye)
-        m = model.Wc + ds[..., :, None] * model.Ww
+        m = screen_mixing_at(model, eye)
         return np.linalg.solve(m, (target - model.Ac)[..., None])[..., 0].astype(np.float32)
     return (target @ model.Wc_inv.T).astype(np.float32)
 
