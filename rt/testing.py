@@ -14,7 +14,7 @@ curves; the specular lobe has kappa ~0.3 and gamma ~20.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -169,34 +169,63 @@ def make_test_video(
 
     yuv420p H.264 (ultrafast) at ``rate`` fps for ``seconds``; the audio (mono) lasts as long.
     """
+    n = round(seconds * rate)
+    base = smooth_frame(width + n, height, seed=1)
+    frames = (np.ascontiguousarray(base[:, i : i + width]) for i in range(n))
+    options = {"preset": "ultrafast", "crf": "20"} if codec == "libx264" else None
+    write_clip(path, frames, rate, tone=audio, audio_codec=audio_codec,
+               sample_rate=sample_rate, codec=codec, options=options)  # fmt: skip
+
+
+def write_clip(
+    path: str,
+    frames: Iterable[np.ndarray],
+    rate: int,
+    tone: bool = True,
+    audio_codec: str = "aac",
+    sample_rate: int = 48000,
+    codec: str = "libx264",
+    options: dict[str, str] | None = None,
+) -> None:
+    """Encode RGB frames (H, W, 3) uint8 as an untagged yuv420p clip (BT.601 matrix, limited
+    range) at ``rate`` fps, with a mono 440 Hz tone as long as the video if ``tone``.
+
+    A source clip for tests, benchmarks and the demo. It writes the planes itself, untagged,
+    on purpose: the reader's colour-metadata guessing and audio remuxing get exercised, which
+    the product's :class:`viewcomp.rt.media.video.VideoWriter` (tagged, atomic) never does.
+    Odd frame sizes are cropped to even ones.
+    """
     import av  # only the video helpers need PyAV
 
     from viewcomp.rt.media.frames import rgb_to_yuv420p
 
-    n = round(seconds * rate)
-    base = smooth_frame(width + n, height, seed=1)
+    n = 0
     with av.open(path, "w") as out:
         vs = out.add_stream(codec, rate=rate)
-        vs.width, vs.height, vs.pix_fmt = width, height, "yuv420p"
-        if codec == "libx264":
-            vs.options = {"preset": "ultrafast", "crf": "20"}
+        vs.pix_fmt = "yuv420p"
+        if options:
+            vs.options = options
         aus = None
-        if audio:
+        if tone:
             aus = out.add_stream(audio_codec, rate=sample_rate)
             aus.layout = "mono"
-        for i in range(n):
-            planes = rgb_to_yuv420p(np.ascontiguousarray(base[:, i : i + width]), "bt601")
-            frame = av.VideoFrame(width, height, "yuv420p")
+        for rgb in frames:
+            h, w = rgb.shape[0] - rgb.shape[0] % 2, rgb.shape[1] - rgb.shape[1] % 2
+            if n == 0:
+                vs.width, vs.height = w, h
+            planes = rgb_to_yuv420p(np.ascontiguousarray(rgb[:h, :w]), "bt601")
+            frame = av.VideoFrame(w, h, "yuv420p")
             for plane, arr in zip(frame.planes, (planes.y, planes.u, planes.v), strict=True):
                 view = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
                 view[:, : plane.width] = arr
-            frame.pts = i
+            frame.pts = n
+            n += 1
             for packet in vs.encode(frame):
                 out.mux(packet)
         for packet in vs.encode(None):
             out.mux(packet)
         if aus is not None:
-            total = round(seconds * sample_rate)
+            total = round(n / rate * sample_rate)
             chunk = 1024
             for start in range(0, total, chunk):
                 k = min(chunk, total - start)

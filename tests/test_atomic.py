@@ -148,7 +148,7 @@ def test_the_file_and_its_folder_are_synced(
 
 @pytest.mark.parametrize("fail", [False, True])
 def test_the_demo_clip_writer_is_atomic(tmp_path: Path, fail: bool) -> None:
-    """The demo's video writer goes through atomic_path: a failure mid-encode leaves no
+    """The demo's video output goes through the atomic VideoWriter: a failure mid-encode leaves no
     partial file (it used to leave a `.part` file behind)."""
     import numpy as np
 
@@ -161,5 +161,5 @@ def test_the_demo_clip_writer_is_atomic(tmp_path: Path, fail: bool) -> None:
             _write_frames(tmp_path / "clip.mp4", frames, 25)
         assert _names(tmp_path) == []
     else:
-        _write_frames(tmp_path / "clip.mp4", frames, 25, tone=True)
+        _write_frames(tmp_path / "clip.mp4", frames, 25)
         assert _names(tmp_path) == ["clip.mp4"] and (tmp_path / "clip.mp4").stat().st_size > 0

@@ -147,37 +147,24 @@ def _write_clip(path: Path, images: list, seconds: float, rate: int) -> None:
     strip = np.concatenate(images, axis=1)
     span = strip.shape[1] - w
     frames = [strip[:, round(span * i / max(n - 1, 1)) :][:, :w] for i in range(n)]
-    _write_frames(path, frames, rate, tone=True)
-
-
-def _write_frames(path: Path, frames: list, rate: int, tone: bool = False) -> None:
-    import av
-    import numpy as np
-
     from viewcomp.calib.io.atomic import atomic_path
+    from viewcomp.rt.testing import write_clip
+
+    with atomic_path(path) as tmp:
+        write_clip(str(tmp), frames, rate, options={"preset": "veryfast", "crf": "18"})
+
+
+def _write_frames(path: Path, frames: list, rate: int) -> None:
+    """What the viewer sees, through the product's video writer (atomic, tagged BT.709)."""
+    from fractions import Fraction
+
+    from viewcomp.rt.media.video import VideoWriter
 
     h, w = frames[0].shape[:2]
-    with atomic_path(path) as tmp, av.open(str(tmp), "w", format="mp4") as c:
-        vs = c.add_stream("libx264", rate=rate)
-        vs.width, vs.height, vs.pix_fmt = w - w % 2, h - h % 2, "yuv420p"
-        vs.options = {"preset": "veryfast", "crf": "18"}
-        aus = c.add_stream("aac", rate=48000) if tone else None
-        if aus is not None:
-            aus.layout = "mono"
+    h, w = h - h % 2, w - w % 2
+    with VideoWriter(path, w, h, Fraction(rate)) as writer:
         for f in frames:
-            frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(f[: h - h % 2, : w - w % 2]))
-            c.mux(vs.encode(frame))
-        c.mux(vs.encode(None))
-        if aus is not None:
-            n = round(48000 * len(frames) / rate)
-            pcm = (0.2 * np.sin(2 * np.pi * 440 * np.arange(n) / 48000)).astype(np.float32)
-            for i in range(0, n, 1024):
-                af = av.AudioFrame.from_ndarray(
-                    pcm[None, i : i + 1024], format="flt", layout="mono"
-                )
-                af.sample_rate = 48000
-                c.mux(aus.encode(af))
-            c.mux(aus.encode(None))
+            writer.write(f[:h, :w])
 
 
 def _read_clip(path: Path) -> tuple[list, list]:
