@@ -1,12 +1,13 @@
-"""viewcomp's runtime: the GL compensator, video in/out and the headless render pipeline.
+"""viewcomp's runtime: moderngl, glfw and PyAV; reads the runtime model, never fits.
 
-Modules (import what you need; nothing GL is imported here):
+Sub-packages, in the order a frame flows through them (nothing GL is imported here):
 
-- :mod:`~viewcomp.rt.gl.context`: ``create_context()`` (EGL, GL 3.3), ``GLUnavailable``.
-- :mod:`~viewcomp.rt.gl.compensator`: ``Compensator``, the shader for one ``RuntimeModel``.
-- :mod:`~viewcomp.rt.media.frames`: yuv420p planes, the shared yuv -> RGB conversion, fitting.
-- :mod:`~viewcomp.rt.media.video`: ``VideoReader`` (decode thread), ``VideoWriter``, ``VideoError``.
-- :mod:`~viewcomp.rt.render.tracks`: eye tracks (constant angle/eye, CSV of seconds,degrees).
-- :mod:`~viewcomp.rt.render.pipeline`: ``render_file`` for images and videos, both backends.
-- :mod:`~viewcomp.rt.testing`: synthetic models, frames and clips for tests and benchmarks.
+- ``media``: yuv420p frames, video decode (a worker thread) and encode, audio output; no GL.
+- ``gl``: the headless OpenGL context, the one GL function loader, and the ``Compensator``
+  that runs the shader for one ``RuntimeModel``.
+- ``render``: ``viewcomp render``: images and videos through either backend, and eye tracks.
+- ``play``: ``viewcomp play``: the fullscreen player, live eye input, the embedding API
+  (``LiveRenderer``), the capture window and a private X server for headless runs.
+- ``export``: ``viewcomp export-mpv``: the compensation as an mpv user shader.
+- ``testing`` (a module): synthetic models, frames and clips for tests and benchmarks.
 """

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation
-from viewcomp.calib.model.reference import Method, RuntimeModel
+from viewcomp.calib.model.runtime import Method, RuntimeModel
 from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.calib.world.geometry import meet_screen
 

@@ -31,12 +31,12 @@ from viewcomp.calib.comp.tonemap import (
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
 from viewcomp.calib.model.reference import (
-    RuntimeModel,
     compensate,
     screen_mixing_at,
     tone_terms,
     white_response,
 )
+from viewcomp.calib.model.runtime import RuntimeModel
 
 if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration

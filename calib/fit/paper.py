@@ -13,7 +13,7 @@ from scipy.optimize import isotonic_regression
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.io.patterns import ramp_levels
-from viewcomp.calib.model.reference import RuntimeModel
+from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.geometry import ScreenGeometry
 
 CHANNEL_PATTERNS = ("red", "green", "blue")

@@ -37,7 +37,7 @@ from viewcomp.calib.fit.paper import (
     monotone_lut,
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
-from viewcomp.calib.model.reference import RuntimeModel
+from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.geometry import ScreenGeometry
 
 DEFAULT_SMOOTH_PX = 3.0

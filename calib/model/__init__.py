@@ -1,4 +1,7 @@
 """The runtime model (calibration -> run time contract) and its numpy reference.
 
-- ``reference``: The numpy reference of the per-frame compensation (docs/RUNTIME.md).
+- ``runtime``: ``RuntimeModel``, what the per-frame formula needs for one method, as float32
+  arrays: the contract between the fits and every backend.
+- ``reference``: The numpy reference of the per-frame compensation (docs/RUNTIME.md): the
+  ground truth the GLSL shader and the mpv export are tested against.
 """

@@ -49,7 +49,7 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
-from viewcomp.calib.model.reference import RuntimeModel
+from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.rt.gl.compensator import (
     MAP_TEXELS,
     inverse_position,

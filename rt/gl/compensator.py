@@ -48,7 +48,8 @@ from typing import Any
 import moderngl
 import numpy as np
 
-from viewcomp.calib.model.reference import RuntimeModel, lut_forward
+from viewcomp.calib.model.reference import lut_forward
+from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.context import (
     BufferTexture,

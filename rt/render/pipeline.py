@@ -44,7 +44,8 @@ from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
 from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
-from viewcomp.calib.model.reference import RuntimeModel, compensate
+from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
 from viewcomp.rt.media.video import (
     DEFAULT_PRESET,
