@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewcomp.calib.model.lobe import lobe_lookup, lobe_position
 from viewcomp.calib.model.runtime import RuntimeModel
 
 
@@ -46,14 +47,10 @@ def lut_inverse(lut: np.ndarray, lo: np.ndarray, hi: np.ndarray, values: np.ndar
 
 
 def lobe_change(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
-    """ds(x) = kappa ((R.V_eye)^+ ^gamma - (R.V_cam)^+ ^gamma), shape (H, W, 3)."""
-    eye = np.asarray(eye, np.float32)
-    v = eye - model.pos
-    v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    g = np.float32(model.gamma)
-    se = np.maximum(np.sum(model.refl * v, axis=-1), 0.0) ** g
-    sc = model.cam_lobe
-    return (model.kappa[None, None, :] * (se - sc)[..., None]).astype(np.float32)
+    """ds(x) = lobe(t_eye(x)) - lobe(t_cam(x)), the specular ratio's change from the
+    calibration camera to ``eye``: (H, W, 3) float32."""
+    t = lobe_position(model.refl, model.pos, eye, model.lobe_half)
+    return (lobe_lookup(np.asarray(model.lobe, np.float32), t) - model.cam_lobe).astype(np.float32)
 
 
 def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
@@ -64,11 +61,17 @@ def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
     return pw @ model.Ww.T
 
 
-def screen_mixing_at(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
-    """M(x) = Wc(x) + diag(ds(x)) Ww(x): the real screen's colour mixing seen from ``eye``
-    (pixel method), so that the screen shows M(x) f(I) + Ac(x) there. (H, W, 3, 3)."""
+def screen_at(model: RuntimeModel, eye: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The real screen seen from ``eye`` (pixel method): it shows M(x) f(I) + A(x) there.
+
+    M = Wc + diag(ds) Ww and A = Ac + ds (lambda Aw): the lobe's change scales the white
+    screen's light, and the share lambda (``lobe_black``) of its black level that is the
+    projector's leak (room light comes from elsewhere). Returns M (H, W, 3, 3) and A
+    (H, W, 3), float32.
+    """
     ds = lobe_change(model, eye)
-    return model.Wc + ds[..., :, None] * model.Ww
+    leak = np.asarray(model.lobe_black, np.float32) * model.Aw
+    return model.Wc + ds[..., :, None] * model.Ww, model.Ac + ds * leak
 
 
 def tone_terms(
@@ -102,8 +105,8 @@ def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray
     ``paper`` (valid range [inv_lo, inv_hi]).
     """
     if model.method == "pixel":
-        m = screen_mixing_at(model, eye)
-        return np.linalg.solve(m, (target - model.Ac)[..., None])[..., 0].astype(np.float32)
+        m, a = screen_at(model, eye)
+        return np.linalg.solve(m, (target - a)[..., None])[..., 0].astype(np.float32)
     return (target @ model.Wc_inv.T).astype(np.float32)
 
 
