@@ -40,6 +40,7 @@ from os import PathLike
 
 import numpy as np
 
+from viewcomp.calib.io.hdr import check_stops, merge_exposures
 from viewcomp.calib.sim.materials import (
     Material,
     lens_averaged_reflectance,
@@ -185,7 +186,15 @@ PROJECTOR_PRESETS: dict[str, ProjectorPhysics] = {
 
 @dataclass(frozen=True)
 class CameraPhysics:
-    """The camera: exposure, vignetting, noise and quantisation (response comes from the rig)."""
+    """The camera: exposure, vignetting, noise and quantisation (response comes from the rig).
+
+    ``hdr_stops``: None for one exposure per capture (encoded codes of ``bits`` bits), or the
+    relative exposures of an HDR bracket (e.g. :data:`~viewcomp.calib.io.hdr.DEFAULT_STOPS`):
+    each capture is then taken at ``exposure * stop`` for every stop, each frame with its own
+    noise and quantised to ``bits`` bits, and merged by
+    :func:`~viewcomp.calib.io.hdr.merge_exposures` into float32 linear light in units of
+    ``exposure`` (values above 1 are light a single exposure would clip).
+    """
 
     exposure: float = 0.80
     vignetting: bool = True
@@ -193,6 +202,16 @@ class CameraPhysics:
     shot_noise: float = 1e-4  # variance per unit signal, one frame
     frames: int = 4  # frames averaged per capture
     bits: int = 8
+    hdr_stops: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.exposure) and self.exposure > 0):
+            raise SimulatorError(f"camera exposure must be finite and > 0, got {self.exposure}")
+        if self.hdr_stops is not None:
+            try:
+                check_stops(self.hdr_stops)
+            except ValueError as exc:
+                raise SimulatorError(f"camera hdr_stops: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -464,10 +483,22 @@ class Simulator:
         sd = np.sqrt(var / max(self.camera.frames, 1))
         return linear + rng.standard_normal(linear.shape) * sd
 
+    def record(self, linear: np.ndarray, key: str) -> np.ndarray:
+        """What the camera writes of its linear signal ``linear`` (H, W, 3) (after exposure):
+        encoded codes (:meth:`quantise` of :meth:`noise`), or, with ``camera.hdr_stops``, the
+        bracket's frames (each ``linear * stop`` with its own noise, keyed ``key@stop``)
+        merged into float32 linear light (:func:`~viewcomp.calib.io.hdr.merge_exposures`)."""
+        stops = self.camera.hdr_stops
+        if stops is None:
+            return self.quantise(self.noise(linear, key))
+        frames = [self.quantise(self.noise(linear * s, f"{key}@{s:g}")) for s in stops]
+        return merge_exposures(frames, stops, self.response)[0]
+
     def capture(self, screen: AnyScreen, image: np.ndarray, key: str) -> np.ndarray:
-        """What the calibration camera records: encoded (H, W, 3), with noise and vignetting."""
+        """What the calibration camera records: encoded (H, W, 3), with noise and vignetting
+        (float32 linear with ``camera.hdr_stops``: see :meth:`record`)."""
         lin = self.expose(self.radiance(screen, image, self.geometry.camera), vignetting=True)
-        return self.quantise(self.noise(lin, key))
+        return self.record(lin, key)
 
     def observe(self, screen: AnyScreen, image: np.ndarray, eye: np.ndarray) -> np.ndarray:
         """What an ideal eye at ``eye`` sees (no noise, no vignetting): (H, W, 3) uint8."""

@@ -67,7 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
-    add_simulator_arguments(sim, size="--sim-size")
+    add_simulator_arguments(sim, size="--sim-size", material=True)
     p.set_defaults(run=run)
 
 
@@ -148,15 +148,27 @@ def _simulated(
 
     from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
     from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
-    from viewcomp.calib.sim.simulator import make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import screen_colour
+    from viewcomp.calib.sim.simulator import (
+        PROJECTOR_PRESETS,
+        AnyScreen,
+        make_screen,
+        material_screen,
+        simulation_rig,
+        white_screen,
+    )
+    from viewcomp.commands._common import simulated_screen
 
+    colour, gloss, material, projector = simulated_screen(args)
     rig = template or simulation_rig()
     if size is not None:
         rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
     true_rig = scaled_camera_rig(rig, size)
-    sim = camera_simulator(true_rig, args.seed)
-    screen = make_screen(screen_colour(args.screen), args.gloss, shape=sim.shape, seed=args.seed)
+    sim = camera_simulator(true_rig, args.seed, PROJECTOR_PRESETS[projector])
+    screen: AnyScreen
+    if material is not None:
+        screen = material_screen(material)
+    else:
+        screen = make_screen(colour, gloss, shape=sim.shape, seed=args.seed)
     dev = _SimulatedRig(sim, {"white": white_screen(), "screen": screen})
     # the simulated world's geometry is known: write it (without the lens, for calibrate)
     return dev, dev.projector, dev.camera, written_rig(true_rig)
