@@ -1,14 +1,19 @@
 """HDR captures: the exposure merge (viewcomp.calib.io.hdr), the simulated camera's bracket,
-`simulate --hdr` and `simulate --exposure auto` on measured materials."""
+`simulate --hdr` and `simulate --exposure auto` on measured materials, and `capture --hdr`
+(the simulated rig end to end, an OpenCV camera over a fake driver)."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
+from viewcomp.calib.fit.calibrate import calibrate
+from viewcomp.calib.hw.devices import DeviceError, OpenCVCamera
+from viewcomp.calib.hw.procedure import Bracket, exposure_value, relative_exposure
 from viewcomp.calib.io.captureset import read_capture_set
 from viewcomp.calib.io.hdr import CLIP_CODE, DEFAULT_STOPS, merge_exposures
 from viewcomp.calib.io.patterns import table1_patterns
@@ -164,3 +169,96 @@ def test_simulate_camera_space_material_hdr(materials_dir: Path, tmp_path: Path)
     assert cs.rig.capture.space == "camera"
     assert cs.screen["gray"].dtype == np.float32 and cs.screen["gray"].max() > 1.0
     assert (out / "screen" / "graycode_00.npy").is_file()
+
+
+# -- capture --hdr ------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_capture_simulate_hdr_end_to_end(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "caps"
+    args = ["capture", str(out), "--simulate", "--yes", "--sim-size", "160x80", "--frames", "2"]
+    assert main([*args, "--hdr", "--exposure", "4"]) == 0  # 5x the default: the ramp clips
+    err = capsys.readouterr().err
+    assert "HDR bracket: relative exposures 1, 1/4, 1/16, 1/64, 1/256 of 4" in err
+    assert (out / "screen" / "gray.npy").is_file() and (
+        out / "screen" / "graycode_00.npy"
+    ).is_file()
+    assert not (out / "screen" / "gray.png").exists()
+    cs = read_capture_set(out)
+    assert cs.screen["gray"].dtype == np.float32
+    assert cs.white["ramp"].max() > 1.5  # light a single exposure would clip
+    cal = calibrate(cs)
+    assert cal.pixel is not None
+
+
+class ExposureCapture:
+    """cv2.VideoCapture stand-in with an exposure control: ``accepts`` False refuses to set
+    it, ``moves`` False accepts and ignores it (reports the old value)."""
+
+    def __init__(self, accepts: bool, moves: bool) -> None:
+        self.accepts, self.moves, self.exposure, self.frames = accepts, moves, 156.0, 0
+
+    def isOpened(self) -> bool:
+        return True
+
+    def set(self, prop: int, value: float) -> bool:
+        if prop == cv2.CAP_PROP_EXPOSURE:
+            if self.accepts and self.moves:
+                self.exposure = float(max(1, round(value)))  # V4L2: whole 100 us steps
+            return self.accepts
+        return True
+
+    def get(self, prop: int) -> float:
+        return self.exposure if prop == cv2.CAP_PROP_EXPOSURE else 0.0
+
+    def read(self) -> tuple[bool, np.ndarray]:
+        self.frames += 1
+        level = min(255, round(self.exposure))
+        return True, np.full((4, 6, 3), level, np.uint8)
+
+    def release(self) -> None:
+        return None
+
+
+def _opencv_camera(monkeypatch: pytest.MonkeyPatch, accepts: bool, moves: bool) -> OpenCVCamera:
+    fake = ExposureCapture(accepts, moves)
+    monkeypatch.setattr(cv2, "VideoCapture", lambda index: fake)
+    return OpenCVCamera(0, flush=1)
+
+
+def test_opencv_bracket_reads_back_what_the_camera_reports(monkeypatch: pytest.MonkeyPatch) -> None:
+    cam = _opencv_camera(monkeypatch, accepts=True, moves=True)
+    lines: list[str] = []
+    bracket = Bracket(cam, DEFAULT_STOPS, parse_response("linear"), lines.append)
+    lin, clipped = bracket.grab(1)
+    # 156 * 1/256 rounds to 1: the merge uses what the camera reports (1/156, not 1/256)
+    assert "1/156" in lines[0] and "1/4" in lines[0]
+    assert cam.get_exposure() == 156.0  # the base is restored
+    assert lin.dtype == np.float32 and not clipped.any()
+
+
+def test_hdr_refuses_a_camera_whose_exposure_cannot_be_set(monkeypatch: pytest.MonkeyPatch) -> None:
+    cam = _opencv_camera(monkeypatch, accepts=False, moves=False)
+    with pytest.raises(DeviceError, match=r"camera 0.*--hdr"):
+        Bracket(cam, DEFAULT_STOPS, SRGB, print).grab(1)
+    cam = _opencv_camera(monkeypatch, accepts=True, moves=False)
+    with pytest.raises(DeviceError, match=r"does not change its exposure.*--hdr"):
+        Bracket(cam, DEFAULT_STOPS, SRGB, print).grab(1)
+
+
+def test_exposure_units_linear_and_log2() -> None:
+    for base in (156.0, -6.0):
+        for rel in DEFAULT_STOPS:
+            v = exposure_value(base, rel)
+            assert relative_exposure(base, v) == pytest.approx(rel)
+    assert exposure_value(-6.0, 0.25) == -8.0 and exposure_value(100.0, 0.25) == 25.0
+
+
+def test_capture_hdr_needs_a_known_response(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["capture", "x", "--camera", "0", "--monitor", "0", "--hdr"])
+    assert exc.value.code == 2
+    assert "--hdr needs the camera's response" in capsys.readouterr().err

@@ -229,8 +229,13 @@ def rectify_capture_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, Any]]:
                 continue
             img = caps.get(n)
             rect[caps.sub][n] = fill_border(rectify(img, maps), BORDER_PX)
-            top = (img >= 1.0).astype(np.float32)
-            fractions[(caps.sub, n)] = float(rectify(top, maps).round().mean())
+            # codes at the top decode to 1.0; a float (HDR) capture, whose raw saturation is 0,
+            # holds light above 1 unclipped
+            if caps.saturation.get(n, 0.0) > 0:
+                top = (img >= 1.0).astype(np.float32)
+                fractions[(caps.sub, n)] = float(rectify(top, maps).round().mean())
+            else:
+                fractions[(caps.sub, n)] = 0.0
         check_pattern_order(rect[caps.sub], caps.sub)
     stats["seconds"] = round(time.perf_counter() - t0, 2)
     out = CaptureSet(

@@ -12,14 +12,18 @@ seconds and its own response curve): each frame's codes are linearised by the ca
 response (:func:`~viewcomp.calib.io.imageio.to_linear`) and divided by the frame's relative
 exposure; the frames are averaged per pixel-channel with the weight
 
-    w = hat(z) * exposure,   hat(z) = max(0, min(z - BLACK_CODE, CLIP_CODE - z))
+    w_k = hat(z_k) * exposure_k,   hat(z) = max(0, min(z - BLACK_CODE, CLIP_CODE - z))
 
-on the encoded value z in 0..1: Debevec's hat, which gives no weight to clipped codes
-(z >= CLIP_CODE, 250/255) and near-black ones (z <= BLACK_CODE, 2/255), times the exposure,
-because a longer frame carries the same light with less relative noise. A pixel-channel no
-frame weighs takes, if it is clipped in every frame, the shortest exposure's value (flagged in
-the returned mask: the true value is at least that); otherwise (near black everywhere) the
-longest exposure's value.
+and no weight for a frame whose own code is clipped (>= CLIP_CODE, 250/255). hat is Debevec's
+hat on the encoded value z in 0..1, zero for near-black codes (<= BLACK_CODE, 2/255), times
+the exposure because a longer frame carries the same light with less relative noise. z_k is
+the code frame k *should* hold, encode(reference * exposure_k), with the reference the longest
+exposure not clipped there, rather than the frame's own code: in a dark region the short
+frames' codes are mostly read noise, and weighing them by their own code would select the
+noise that lifts them above black (measured: spikes of 100x the true level). A pixel-channel
+no frame weighs takes the reference: the longest exposure not clipped (near black
+everywhere), or, clipped in every frame, the shortest exposure's value, flagged in the
+returned mask (the true value is at least that).
 """
 
 from __future__ import annotations
@@ -99,23 +103,29 @@ def merge_exposures(
             )
     resp = response if isinstance(response, Response) else parse_response(response)
     top = float(np.iinfo(first.dtype).max)
+    lins = [
+        to_linear(np.asarray(f), resp).astype(np.float64) / s
+        for f, s in zip(frames, stops, strict=True)
+    ]
+    clips = [np.asarray(f) >= CLIP_CODE * top for f in frames]
+    order = [int(k) for k in np.argsort(stops)]  # shortest first
+    shortest = lins[order[0]]
+    # the longest exposure not clipped at each pixel-channel: the reference
+    reference = shortest.copy()
+    clipped_all = np.ones(first.shape, bool)
+    for k in order:
+        reference = np.where(clips[k], reference, lins[k])
+        clipped_all &= clips[k]
     total = np.zeros(first.shape, np.float64)
     weight = np.zeros(first.shape, np.float64)
-    clipped_all = np.ones(first.shape, bool)
-    order = [int(k) for k in np.argsort(stops)]  # shortest first
-    shortest = to_linear(np.asarray(frames[order[0]]), resp).astype(np.float64) / stops[order[0]]
-    # the longest exposure not clipped at each pixel-channel: a near-black pixel's estimate
-    longest = shortest.copy()
     for k in order:
-        raw = np.asarray(frames[k])
-        z = raw.astype(np.float32) / np.float32(top)
-        lin = to_linear(raw, resp).astype(np.float64) / stops[k]
+        # the hat of the code the reference predicts in frame k (not of the frame's own noisy
+        # code: weighing dark frames by their own code would favour noise that lifts them)
+        z = resp.encode(np.clip(reference * stops[k], 0.0, 1.0).astype(np.float32))
         w = np.maximum(0.0, np.minimum(z - BLACK_CODE, CLIP_CODE - z)) * stops[k]
-        total += w * lin
+        w = np.where(clips[k], 0.0, w)
+        total += w * lins[k]
         weight += w
-        clip = z >= CLIP_CODE
-        clipped_all &= clip
-        longest = np.where(clip, longest, lin)
-    out = np.where(weight > 0, total / np.where(weight > 0, weight, 1.0), longest)
+    out = np.where(weight > 0, total / np.where(weight > 0, weight, 1.0), reference)
     out = np.where(clipped_all, shortest, out)
     return np.maximum(out, 0.0).astype(np.float32), clipped_all
