@@ -90,7 +90,7 @@ class CaptureSet:
 
     def saturated(self, sub: str, name: str) -> float:
         """Fraction 0..1 of the pixel-channels of ``sub/name`` at the maximum code (255 for
-        8-bit, 65535 for 16-bit, >= 1.0 for linear ``.npy``)."""
+        8-bit, 65535 for 16-bit; 0 for linear ``.npy``, whose values above 1 are HDR light)."""
         key = (sub, name)
         if key not in self.raw_max_fraction:
             raise KeyError(f"no capture {sub}/{name} in {self.path}")

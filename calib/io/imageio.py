@@ -138,9 +138,10 @@ def _decode_table(response: Response, dtype: str) -> np.ndarray:
 
 
 def max_code_fraction(raw: np.ndarray) -> float:
-    """Fraction of pixel-channels at the maximum code: 255 (uint8), 65535 (uint16); 0 for
-    float linear images, which are measurements without a top code (HDR merges exceed 1.0).
-    A measure of saturation, 0..1."""
+    """Fraction of pixel-channels at the maximum code: 255 (uint8), 65535 (uint16). A measure
+    of saturation, 0..1. Float linear images (``.npy``) have no maximum code: light above 1
+    (the full scale of the base exposure) is what an HDR merge holds, not clipping, so they
+    count as 0 (a bracket whose shortest frame clips is refused when it is captured)."""
     if raw.size == 0:
         return 0.0
     if raw.dtype == np.uint8:
