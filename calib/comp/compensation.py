@@ -27,6 +27,7 @@ from viewcomp.calib.comp.tonemap import (
     DEFAULT_LAMBDA,
     ToneMap,
     ToneSmoother,
+    choose_predicted_tone_map,
     choose_tone_map,
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
@@ -42,6 +43,8 @@ if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
 
 THUMB_SIDE = 64
+#: Video frames between two whole-grid searches of the per-pixel method's tone map.
+FULL_SEARCH_FRAMES = 15
 _CACHE = 64
 
 
@@ -128,7 +131,9 @@ class Compensation:
         self._small: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, RuntimeModel]] = {}
         self._paper: OrderedDict[tuple, RuntimeModel] = OrderedDict()
         self._gains: np.ndarray | None = None  # the paper's feedback, carried between frames
-        self._view: tuple[tuple, np.ndarray, np.ndarray] | None = None
+        self._view: tuple[tuple, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._last_tone: ToneMap | None = None  # the last video frame's, unsmoothed
+        self._frames = 0  # video frames since the last full tone-map search
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -168,28 +173,38 @@ class Compensation:
     def _grid(self, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
         return sample_grid(self.shape, shape)
 
-    def tone_map(self, model: RuntimeModel, thumb: np.ndarray, eye: np.ndarray) -> ToneMap:
-        """Eq. 22 on the thumbnail for this model and eye (unsmoothed)."""
+    def tone_map(
+        self,
+        model: RuntimeModel,
+        thumb: np.ndarray,
+        eye: np.ndarray,
+        start: ToneMap | None = None,
+    ) -> ToneMap:
+        """The tone map for the thumbnail, this model and eye (unsmoothed): the paper's
+        method Eq. 22; the per-pixel method the smallest predicted perceptual error
+        (:func:`~viewcomp.calib.comp.tonemap.choose_predicted_tone_map`; ``start``: a local
+        search from a previous choice)."""
         small = self._small_model(model, thumb.shape[:2])
         cw = white_response(small, thumb).astype(np.float64)
         if model.method == "paper":
             u = cw @ model.Wc_inv.T.astype(np.float64)
             v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
             return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
-        u, v, c = self._view_terms(small, cw, eye)
-        scale = max(float(cw.mean()), 1e-4)
-        return choose_tone_map(u, v, c, 0.0, 1.0, self.lam, beta_weight=self.mu, beta_scale=scale)
+        m, m_inv, a = self._screen(small, eye)
+        u, v, c = tone_terms(m_inv, cw, a)
+        return choose_predicted_tone_map(u, v, c, m, cw, 0.0, 1.0, start)
 
-    def _view_terms(
-        self, small: RuntimeModel, cw: np.ndarray, eye: np.ndarray
+    def _screen(
+        self, small: RuntimeModel, eye: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:func:`tone_terms` per thumbnail pixel (float64); M^-1 is kept for the last
-        (grid, eye) asked for, so a held eye costs the inversion once."""
+        """The screen at ``eye`` on the thumbnail's pixels (float64): M, M^-1 and A, kept for
+        the last (grid, eye) asked for, so a held eye costs the inversion once."""
         key = (small.shape, tuple(np.asarray(eye, np.float64).tolist()))
         if self._view is None or self._view[0] != key:
             m, a = screen_at(small, eye)
-            self._view = (key, np.linalg.inv(m.astype(np.float64)), a.astype(np.float64))
-        return tone_terms(self._view[1], cw, self._view[2])
+            m64 = m.astype(np.float64)
+            self._view = (key, m64, np.linalg.inv(m64), a.astype(np.float64))
+        return self._view[1], self._view[2], self._view[3]
 
     def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye, the time (s)."""
@@ -197,7 +212,13 @@ class Compensation:
         gains = None
         if self.method == "pixel":
             model = self._pixel_model
-            tone = self.tone_map(model, thumb, eye)
+            # Video: a local search from the last frame's choice, the whole grid every
+            # FULL_SEARCH_FRAMES frames (a scene cut) and for stills.
+            warm = t is not None and self._frames % FULL_SEARCH_FRAMES != 0
+            tone = self.tone_map(model, thumb, eye, self._last_tone if warm else None)
+            if t is not None:
+                self._last_tone = tone
+                self._frames += 1
         else:
             # Stills: the paper's three feedback iterations from i_c = i_s. Video (t given):
             # the iteration carries over from frame to frame, one step per frame, starting

@@ -194,6 +194,144 @@ def choose_tone_map(
     return min([best, *pick(fine, best.cost)], key=rank)
 
 
+#: The predicted tone map's search: alpha from PREDICTED_ALPHA_MAX down to PREDICTED_ALPHA_MIN
+#: on a 0.05 grid, beta on PREDICTED_BETAS times the image's mean white-screen level, then
+#: finer around the best; a video frame starts from the previous frame's choice (a local
+#: search). Alpha above 1 (brighter than the white screen would show) can be the best a dim
+#: or coloured screen can do.
+PREDICTED_ALPHA_MIN = 0.2
+PREDICTED_ALPHA_MAX = 1.5
+PREDICTED_BETAS = np.linspace(-0.3, 0.6, 46)
+#: Pixels of the thumbnail the predicted tone map looks at, at most (every k-th row and column).
+PREDICTED_PIXELS = 1024
+
+
+#: Linear sRGB (D65) -> CIE XYZ, rows X, Y, Z, each divided by the white point's component.
+_RGB_TO_XYZN = np.array(
+    [[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]
+) / np.array([[0.95047], [1.0], [1.08883]])
+
+
+def _lab(rgb: np.ndarray) -> np.ndarray:
+    """CIELAB (..., 3) of linear RGB taken as linear sRGB (D65), 1 = white: the colour
+    space the evaluation's CIEDE2000 measures in."""
+    t = np.maximum(rgb, 0.0) @ _RGB_TO_XYZN.T
+    f = np.where(t > 0.008856, np.cbrt(t), 7.787 * t + 16.0 / 116.0)
+    return np.stack(
+        [
+            116.0 * f[..., 1] - 16.0,
+            500.0 * (f[..., 0] - f[..., 1]),
+            200.0 * (f[..., 1] - f[..., 2]),
+        ],
+        axis=-1,
+    )
+
+
+def _delta_e94(lab: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """CIE94 colour difference (graphic arts) of ``lab`` from ``ref``, per pixel: chroma and
+    hue weighted down for saturated references, as CIEDE2000 does, at a fraction of its cost."""
+    c_ref = np.hypot(ref[..., 1], ref[..., 2])
+    c = np.hypot(lab[..., 1], lab[..., 2])
+    dl = lab[..., 0] - ref[..., 0]
+    dc = c - c_ref
+    dh2 = np.maximum(np.sum((lab[..., 1:] - ref[..., 1:]) ** 2, axis=-1) - dc * dc, 0.0)
+    return np.sqrt(dl * dl + (dc / (1.0 + 0.045 * c_ref)) ** 2 + dh2 / (1.0 + 0.015 * c_ref) ** 2)
+
+
+def choose_predicted_tone_map(
+    u: np.ndarray,
+    v: np.ndarray,
+    c: np.ndarray,
+    m: np.ndarray,
+    white: np.ndarray,
+    lo: np.ndarray | float = 0.0,
+    hi: np.ndarray | float = 1.0,
+    start: ToneMap | None = None,
+) -> ToneMap:
+    """(alpha, beta) minimising the *predicted* perceptual error of the compensated image.
+
+    The light asked for is y = alpha u + beta v + c per pixel-channel (u = M^-1 C_w, v =
+    M^-1 1, c = -M^-1 A: :func:`~viewcomp.calib.model.reference.tone_terms`); the projector
+    gives clip(y, lo, hi), so the screen shows alpha C_w + beta + M (clip(y) - y). The error
+    is the mean CIE94 colour difference between what it shows and C_w, what the white screen
+    would show (both in CIELAB, the camera's linear RGB taken as linear sRGB): what a viewer
+    sees, where the paper's Eq. 22 counts clipped pixel-channels however far off they are,
+    and prefers a dark image on a coloured screen that cannot reach the white's levels in
+    some channel. The error is not convex in (alpha, beta) there (hue trades against
+    lightness), so the search is a grid, then a finer grid around the best.
+
+    Args:
+        u, v, c: (..., 3) from tone_terms, linear projector light.
+        m: (..., 3, 3) the screen's mixing at the eye (what tone_terms inverted).
+        white: (..., 3) C_w, linear camera units.
+        lo, hi: the projector light's bounds (0 and 1 for the per-pixel method).
+        start: a previous choice (the last video frame's): a local search around it instead
+            of the whole grid.
+
+    Returns:
+        The ToneMap (``clipped``: the fraction of pixel-channels clipped; ``cost``: the
+        error).
+    """
+    shape = np.shape(u)
+    n = int(np.prod(shape[:-1]))
+    if n == 0:
+        return ToneMap(1.0, 0.0, 0.0, 0.0)
+    k = max(1, int(np.ceil(n / PREDICTED_PIXELS)))
+
+    def flat(x: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(np.asarray(x, np.float64), shape).reshape(-1, 3)[::k]
+
+    u, v, c, w = flat(u), flat(v), flat(c), flat(white)
+    m = np.broadcast_to(np.asarray(m, np.float64), (*shape, 3)).reshape(-1, 3, 3)[::k]
+    lo_a = np.broadcast_to(np.asarray(lo, np.float64), (3,))
+    hi_a = np.broadcast_to(np.asarray(hi, np.float64), (3,))
+    goal = _lab(w)
+    scale = max(float(w.mean()), 1e-4)
+
+    def errors(alpha: float, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        y = alpha * u + betas[:, None, None] * v + c
+        short = np.clip(y, lo_a, hi_a) - y
+        shown = alpha * w + betas[:, None, None] + np.einsum("nij,knj->kni", m, short)
+        err = np.mean(_delta_e94(_lab(shown), goal), axis=1)
+        return err, np.mean(short != 0.0, axis=(1, 2))
+
+    best: ToneMap | None = None
+
+    def visit(alphas: np.ndarray, betas: np.ndarray) -> None:
+        nonlocal best
+        for alpha in alphas:
+            if not PREDICTED_ALPHA_MIN - 1e-9 <= alpha <= PREDICTED_ALPHA_MAX + 1e-9:
+                continue
+            err, clipped = errors(float(alpha), betas)
+            i = int(np.argmin(err))
+            if best is None or err[i] < best.cost - 1e-15:
+                best = ToneMap(float(alpha), float(betas[i]), float(clipped[i]), float(err[i]))
+
+    if start is None:
+        visit(
+            np.round(np.arange(1.0, PREDICTED_ALPHA_MIN - 1e-9, -0.05), 2), PREDICTED_BETAS * scale
+        )
+        assert best is not None
+        visit(
+            np.round(np.arange(best.alpha + 0.04, best.alpha - 0.0401, -0.01), 2),
+            best.beta + np.linspace(-0.02, 0.02, 11) * scale,
+        )
+    else:
+        # A local search: a 5 x 5 grid around the centre, moved to the best until it stays.
+        a0, b0 = float(start.alpha), float(start.beta)
+        for _ in range(4):
+            visit(
+                np.round(a0 + np.array([0.0, 0.01, -0.01, 0.02, -0.02]), 2),
+                b0 + np.array([0.0, 0.004, -0.004, 0.008, -0.008]) * scale,
+            )
+            assert best is not None
+            if (best.alpha, best.beta) == (a0, b0):
+                break
+            a0, b0 = best.alpha, best.beta
+    assert best is not None
+    return best
+
+
 class ToneSmoother:
     """Exponential smoothing of (alpha, beta) over video frames, so brightness never flickers.
 

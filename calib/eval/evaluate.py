@@ -31,7 +31,7 @@ from viewcomp.calib.comp.tonemap import (
     DEFAULT_BETA_WEIGHT,
     DEFAULT_LAMBDA,
     ToneMap,
-    choose_tone_map,
+    choose_predicted_tone_map,
 )
 from viewcomp.calib.eval.metrics import delta_e2000, psnr, sse, ssim
 from viewcomp.calib.eval.testimages import natural_images, uniform
@@ -159,8 +159,9 @@ class World:
         """The physical limit: invert the true per-pixel model at ``eye`` exactly.
 
         Target: the white screen seen by the same eye, alpha C_w + beta with the tone map
-        chosen by the per-pixel method's rule on the same thumbnail; the bounds are the
-        projector's true range [f(0), f(255)].
+        chosen by the per-pixel method's rule (the smallest predicted perceptual error, here
+        predicted by the true model) on the same thumbnail; the bounds are the projector's
+        true range [f(0), f(255)].
         """
         sim = self.sim
         mw = sim.true_mixing(white_screen(), eye, vignetting=False)
@@ -171,18 +172,15 @@ class World:
         m_inv = np.linalg.inv(mc)
         thumb = thumbnail(image)
         rows, cols = sample_grid(self.shape, thumb.shape[:2])
-        mi = m_inv[rows][:, cols]
-        cw_s = (
-            np.einsum("hwij,hwj->hwi", mw[rows][:, cols], sim.projector.response(thumb))
-            + aw[rows][:, cols]
-        )
-        tone = choose_tone_map(
-            *tone_terms(mi, cw_s, ac[rows][:, cols]),
-            sim.projector.leak,
-            1.0,
-            self.lam,
-            beta_weight=self.mu,
-            beta_scale=max(float(cw_s.mean()), 1e-4),
+        sub = (rows[:, None], cols[None, :])
+        proj = sim.projector
+        cw_s = np.einsum("hwij,hwj->hwi", mw[sub], proj.response(thumb)) + aw[sub]
+        tone = choose_predicted_tone_map(
+            *tone_terms(m_inv[sub], cw_s, ac[sub]),
+            mc[sub],
+            cw_s,
+            proj.response(np.zeros(3)),
+            proj.response(np.full(3, 255.0)),
         )
         pu, pv, pc = tone_terms(m_inv, cw, ac)
         p = tone.alpha * pu + tone.beta * pv + pc

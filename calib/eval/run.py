@@ -19,7 +19,41 @@ from viewcomp.calib.eval.evaluate import (
     sweep_means,
     table2,
 )
-from viewcomp.calib.eval.report import write_report
+from viewcomp.calib.eval.materials import MATERIAL_SIZE
+from viewcomp.calib.eval.materials import materials as materials_protocol
+from viewcomp.calib.eval.report import write_materials_report, write_report
+
+PROTOCOLS = ("table2", "sweep", "all", "materials")
+
+
+def _run_materials(
+    out_dir: str | Path,
+    folder: str | Path | None,
+    seed: int,
+    size: tuple[int, int] | None,
+    angles: Iterable[float],
+    progress: Progress | None,
+) -> dict[str, Any]:
+    if folder is None:
+        raise ValueError("the materials protocol needs the folder of measured materials")
+    t0 = time.perf_counter()
+    angles = [float(a) for a in angles]
+    report: dict[str, Any] = {
+        "config": {
+            "protocol": "materials",
+            "seed": seed,
+            "projector": list(size or MATERIAL_SIZE),
+            "angles": angles,
+            "folder": str(folder),
+        }
+    }
+    report |= materials_protocol(folder, seed=seed, size=size or MATERIAL_SIZE, angles=angles,
+                                 progress=progress)  # fmt: skip
+    report["seconds"] = round(time.perf_counter() - t0, 1)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_materials_report(out, report)
+    return report
 
 
 def run(
@@ -31,14 +65,19 @@ def run(
     screens: Iterable[str] = SWEEP_SCREENS,
     progress: Progress | None = None,
     space: str = "projector",
+    materials: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run the protocol(s), write report.json, report.md and the plots; return the report.
 
     ``space = "camera"``: every calibration comes from simulated camera frames (lens, pose,
     chessboard and Gray code) rectified by `calibrate`, as with real hardware.
+    ``protocol = "materials"``: the sweep on the measured materials in the folder
+    ``materials`` (:mod:`viewcomp.calib.eval.materials`), at ``size`` (default 320x160).
     """
-    if protocol not in ("table2", "sweep", "all"):
-        raise ValueError(f"protocol must be table2, sweep or all, got {protocol!r}")
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+    if protocol == "materials":
+        return _run_materials(out_dir, materials, seed, size, angles, progress)
     t0 = time.perf_counter()
     world = World.make(seed=seed, size=size, space=space)
     report: dict[str, Any] = {

@@ -13,9 +13,10 @@ cell of the table's coordinate over the pixels the camera saw there, lightly smo
 the baseline (the level of the farthest angles seen), never negative. Both parametrisations
 are fitted and the one with the smaller residual is kept.
 
-The baseline and the tail come from a fit of b + c exp(-k t^2) to the outer part of the
-curve (a Phong lobe's shape, and a smooth tail for any lobe). Outside the angles the camera
-saw: nearer the peak than any pixel seen (the peak clipped or outside the image), the nearest
+The baseline is the higher of two levels: the floor of a fit of b + c exp(-k t^2) to the
+outer part of the curve (a Phong lobe's shape, and a smooth tail for any lobe), and the level
+at the farthest angles seen (so no decrease the camera never saw is extrapolated). Outside
+the angles the camera saw: nearer the peak than any pixel seen (the peak clipped or outside the image), the nearest
 value is held; beyond the farthest, the lobe continues with the tail's decay exp(-k t^2) from
 its last value, k >= 5, so it reaches the diffuse level by 90 degrees. It is never negative
 and never larger than what was measured.
@@ -44,7 +45,7 @@ MIN_BIN_SAMPLES = 24
 TAIL_MIN_RATE = 5.0
 
 #: Share of the seen coordinate range, at its far end, whose median level is the baseline.
-BASELINE_SHARE = 0.1
+FAR_SHARE = 0.03
 
 
 @dataclass(frozen=True)
@@ -128,10 +129,16 @@ def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[
     curve = np.stack([np.interp(grid, cells, med[:, c]) for c in range(3)], axis=1)
     curve = gaussian_filter1d(curve, 1.0, axis=0, mode="nearest")
     t_grid = grid / (n - 1)
-    base = np.empty(3)
-    rate = np.empty(3)
-    for c in range(3):
-        base[c], rate[c] = _tail(t_grid, curve[:, c])
+    fits = np.array([_tail(t_grid, curve[:, c]) for c in range(3)])
+    rate = fits[:, 1]
+    # The baseline is the higher of the tail fit's floor and the level at the farthest angles
+    # seen. Below the latter it would extrapolate a decrease the camera never saw (a broad
+    # sheen that does not flatten within its view), which can make compensation for a far
+    # eye worse than none; above it, the curve sinking past the lobe is the diffuse part
+    # falling off with angle, which no eye position changes much. The lobe is what stands
+    # above both, and ends at 0 at the farthest angles seen.
+    far = max(3, round(FAR_SHARE * curve.shape[0]))
+    base = np.maximum(fits[:, 0], np.median(curve[-far:], axis=0))
     lobe = np.maximum(curve - base, 0.0)
     table = np.empty((n, 3))
     table[:lo] = lobe[0]
@@ -154,7 +161,7 @@ def _tail(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     outer = (t >= t[0] + 0.5 * (t[-1] - t[0])) | (y - lo_level <= (np.max(y) - lo_level) / 3)
     to, yo = t[outer], y[outer]
     if to.size < 5 or np.ptp(to) <= 0:
-        return float(np.median(y[-max(1, round(BASELINE_SHARE * y.size)) :])), TAIL_MIN_RATE
+        return float(np.median(y[-max(1, round(FAR_SHARE * y.size)) :])), TAIL_MIN_RATE
 
     def resid(p: np.ndarray) -> np.ndarray:
         return p[0] + p[1] * np.exp(-p[2] * to * to) - yo

@@ -166,7 +166,7 @@ def simulate_capture_set(
     if exposure is None and hdr_stops is not None:
         exposure = "auto"
     if exposure == "auto":
-        exposure = scene_exposure(sim, cam if space == "camera" else None, scr, black, hdr_stops)
+        exposure = choose_exposure(sim, cam if space == "camera" else None, scr, black, hdr_stops)
         if log is not None:
             kind = "HDR: the white gray at" if hdr_stops else "8-bit: nothing above"
             level = HDR_GRAY_LEVEL if hdr_stops else EXPOSURE_LIMIT
@@ -189,7 +189,7 @@ def simulate_capture_set(
     return write_capture_set(out_dir, rig, white, real)
 
 
-def scene_exposure(
+def choose_exposure(
     sim: Simulator,
     cam: SimCamera | None,
     screen: AnyScreen,

@@ -18,7 +18,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "Writes report.json, report.md and PNG plots. `all` takes a few minutes.",
     )
     p.add_argument("-o", "--output", required=True, help="report folder (created if needed)")
-    p.add_argument("--protocol", choices=["table2", "sweep", "all"], default="all")
+    p.add_argument(
+        "--protocol",
+        choices=["table2", "sweep", "all", "materials"],
+        default="all",
+        help="table2, sweep, all (both), or materials: the sweep on measured materials "
+        "(needs --materials)",
+    )
+    p.add_argument(
+        "--materials",
+        metavar="DIR",
+        default=None,
+        help="folder of measured materials (.npz neural BRDFs) for --protocol materials",
+    )
     add_simulator_arguments(p, screen=False, gloss=False, space=True)
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(run=run)
@@ -26,12 +38,28 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.eval.run import run as run_eval
+    from viewcomp.cli import UsageError
     from viewcomp.commands._common import Log, parse_size
 
     log = Log(args.quiet)
     size = parse_size(args.size) if args.size else None
     log(f"evaluating protocol {args.protocol} (seed {args.seed})")
-    rep = run_eval(args.output, args.protocol, args.seed, size, progress=log, space=args.space)
+    if args.protocol == "materials" and not args.materials:
+        raise UsageError(
+            "--protocol materials needs --materials DIR, a folder of measured materials "
+            "(.npz neural BRDFs)"
+        )
+    rep = run_eval(
+        args.output,
+        args.protocol,
+        args.seed,
+        size,
+        progress=log,
+        space=args.space,
+        materials=args.materials,
+    )
+    if "materials_checks" in rep:
+        print("materials:", rep["materials_checks"])
     if "table2_checks" in rep:
         print("table2:", rep["table2_checks"])
     if "sweep_checks" in rep:
