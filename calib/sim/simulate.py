@@ -166,7 +166,7 @@ def simulate_capture_set(
     if exposure is None and hdr_stops is not None:
         exposure = "auto"
     if exposure == "auto":
-        exposure = _auto(sim, cam if space == "camera" else None, scr, black, hdr_stops)
+        exposure = choose_exposure(sim, cam if space == "camera" else None, scr, black, hdr_stops)
         if log is not None:
             kind = "HDR: the white gray at" if hdr_stops else "8-bit: nothing above"
             level = HDR_GRAY_LEVEL if hdr_stops else EXPOSURE_LIMIT
@@ -189,15 +189,17 @@ def simulate_capture_set(
     return write_capture_set(out_dir, rig, white, real)
 
 
-def _auto(
+def choose_exposure(
     sim: Simulator,
     cam: SimCamera | None,
     screen: AnyScreen,
     black: bool,
     hdr_stops: tuple[float, ...] | None,
 ) -> float:
-    """:func:`auto_exposure` over every capture of the set ``sim`` (``cam`` in camera space)
-    would write of the white screen and ``screen``."""
+    """The exposure ``exposure="auto"`` chooses: :func:`auto_exposure` over every capture of
+    the white screen and ``screen`` that :func:`simulate_capture_set` writes with ``sim``
+    (``cam``, its camera, in camera space; None in projector space); HDR when ``hdr_stops``
+    is not None."""
     white = white_screen()
     scale = 1.0 / sim.camera.exposure
     if cam is not None:
