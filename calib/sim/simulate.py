@@ -196,8 +196,10 @@ def choose_exposure(
     black: bool,
     hdr_stops: tuple[float, ...] | None,
 ) -> float:
-    """:func:`auto_exposure` over every capture of the set ``sim`` (``cam`` in camera space)
-    would write of the white screen and ``screen``."""
+    """The exposure ``exposure="auto"`` chooses: :func:`auto_exposure` over every capture of
+    the white screen and ``screen`` that :func:`simulate_capture_set` writes with ``sim``
+    (``cam``, its camera, in camera space; None in projector space); HDR when ``hdr_stops``
+    is not None."""
     white = white_screen()
     scale = 1.0 / sim.camera.exposure
     if cam is not None:
