@@ -10,7 +10,8 @@ of an earlier commit::
         --define MAP_N=8 > ab.json
 
 (``--define``: extra ``#define`` values that the other text needs and the current
-Compensator no longer passes.) Per draw variant (identity, pixel solved, pixel from the view
+Compensator no longer passes; ``--other-core``: the other compensate_core.glsl too, when the
+formula itself changed.) Per draw variant (identity, pixel solved, pixel from the view
 cache, paper; RGB and yuv420p input) at ``--size``: the median draw time (wall ms) of each
 over the rounds, the median, min and max of the per-round ratio package / other, and
 whether the outputs are bit-identical.
@@ -39,9 +40,13 @@ from viewcomp.rt.testing import smooth_frame, synthetic_model
 from viewcomp.shaders import build_program, load
 
 
-def _other_class(text: str, extra: dict[str, str]) -> type[Compensator]:
+def _other_class(text: str, extra: dict[str, str], core: str | None = None) -> type[Compensator]:
     def loader(name: str) -> str:
-        return text if name == "compensate.frag.glsl" else load(name)
+        if name == "compensate.frag.glsl":
+            return text
+        if name == "compensate_core.glsl" and core is not None:
+            return core
+        return load(name)
 
     class Other(Compensator):
         """Compensator whose programs compile ``text`` as compensate.frag.glsl."""
@@ -63,13 +68,20 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--other", required=True, help="the other compensate.frag.glsl")
     ap.add_argument("--define", action="append", default=[], help="KEY=VALUE for the other")
+    ap.add_argument(
+        "--other-core",
+        default=None,
+        help="the other compensate_core.glsl, for a change of the formula itself (the outputs "
+        "then differ; the timing compares the two formulas on the same data)",
+    )
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--rounds", type=int, default=11)
     ap.add_argument("--draws", type=int, default=7, help="draws per shader and round")
     args = ap.parse_args(argv)
     w, h = (int(x) for x in args.size.split("x"))
     extra = dict(d.split("=", 1) for d in args.define)
-    other = _other_class(Path(args.other).read_text(encoding="utf-8"), extra)
+    core = Path(args.other_core).read_text(encoding="utf-8") if args.other_core else None
+    other = _other_class(Path(args.other).read_text(encoding="utf-8"), extra, core)
     ctx = create_context()
     report: dict[str, Any] = {
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),

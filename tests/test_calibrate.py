@@ -74,7 +74,7 @@ def test_per_pixel_compensation_closes_the_loop_where_reachable(world):
 
 
 def test_per_pixel_solve_is_the_limit_of_the_fixed_point_feedback(world):
-    """docs/MODEL.md's feedback P <- Wc^-1 (T - A_c - ds (Ww P + lambda Aw)), iterated where
+    """docs/MODEL.md's feedback P <- Wc^-1 (T - A_c - ds (Ww P + eta Aw)), iterated where
     it converges, ends where our one-step per-pixel solve starts."""
     _, _, _, _, cal = world
     m = cal.pixel.runtime_model()

@@ -296,38 +296,40 @@ def choose_predicted_tone_map(
         return err, np.mean(short != 0.0, axis=(1, 2))
 
     best: ToneMap | None = None
+    best_k = 0.0  # best.beta / scale, on the grids' rounded steps (0 stays exactly 0)
 
-    def visit(alphas: np.ndarray, betas: np.ndarray) -> None:
-        nonlocal best
+    def visit(alphas: np.ndarray, ks: np.ndarray) -> None:
+        nonlocal best, best_k
+        ks = np.round(ks, 6)
         for alpha in alphas:
             if not PREDICTED_ALPHA_MIN - 1e-9 <= alpha <= PREDICTED_ALPHA_MAX + 1e-9:
                 continue
-            err, clipped = errors(float(alpha), betas)
+            err, clipped = errors(float(alpha), ks * scale)
             i = int(np.argmin(err))
             if best is None or err[i] < best.cost - 1e-15:
-                best = ToneMap(float(alpha), float(betas[i]), float(clipped[i]), float(err[i]))
+                best_k = float(ks[i])
+                best = ToneMap(float(alpha), best_k * scale, float(clipped[i]), float(err[i]))
 
     if start is None:
-        visit(
-            np.round(np.arange(1.0, PREDICTED_ALPHA_MIN - 1e-9, -0.05), 2), PREDICTED_BETAS * scale
-        )
+        alphas = np.arange(PREDICTED_ALPHA_MAX, PREDICTED_ALPHA_MIN - 1e-9, -0.05)
+        visit(np.round(alphas, 2), PREDICTED_BETAS)
         assert best is not None
         visit(
             np.round(np.arange(best.alpha + 0.04, best.alpha - 0.0401, -0.01), 2),
-            best.beta + np.linspace(-0.02, 0.02, 11) * scale,
+            best_k + np.linspace(-0.02, 0.02, 11),
         )
     else:
         # A local search: a 5 x 5 grid around the centre, moved to the best until it stays.
-        a0, b0 = float(start.alpha), float(start.beta)
+        a0, k0 = float(start.alpha), round(float(start.beta) / scale, 6)
         for _ in range(4):
             visit(
                 np.round(a0 + np.array([0.0, 0.01, -0.01, 0.02, -0.02]), 2),
-                b0 + np.array([0.0, 0.004, -0.004, 0.008, -0.008]) * scale,
+                k0 + np.array([0.0, 0.004, -0.004, 0.008, -0.008]),
             )
             assert best is not None
-            if (best.alpha, best.beta) == (a0, b0):
+            if (best.alpha, best_k) == (a0, k0):
                 break
-            a0, b0 = best.alpha, best.beta
+            a0, k0 = best.alpha, best_k
     assert best is not None
     return best
 

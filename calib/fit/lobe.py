@@ -16,9 +16,9 @@ are fitted and the one with the smaller residual is kept.
 The baseline is the higher of two levels: the floor of a fit of b + c exp(-k t^2) to the
 outer part of the curve (a Phong lobe's shape, and a smooth tail for any lobe), and the level
 at the farthest angles seen (so no decrease the camera never saw is extrapolated). Outside
-the angles the camera saw: nearer the peak than any pixel seen (the peak clipped or outside the image), the nearest
-value is held; beyond the farthest, the lobe continues with the tail's decay exp(-k t^2) from
-its last value, k >= 5, so it reaches the diffuse level by 90 degrees. It is never negative
+the angles the camera saw: nearer the peak than any pixel seen (the peak clipped or outside
+the image), the nearest value is held; beyond the farthest, the lobe is 0 (the diffuse level),
+reached smoothly (the tail's decay exp(-k t^2) from its last value, k >= 5). It is never negative
 and never larger than what was measured.
 
 For comparison the fit also reports the residual of the previous model, b + kappa
@@ -296,11 +296,11 @@ def fit_lobe(
 def black_lobe_share(
     black_ratio: np.ndarray, lobe_cam: np.ndarray, baseline: np.ndarray, valid: np.ndarray
 ) -> np.ndarray:
-    """lambda (3,) in [0, 1]: the share of the white screen's black level that is projector
+    """eta (3,) in [0, 1]: the share of the white screen's black level that is projector
     light, which the lobe reflects (the projector's black leak), the rest being room light.
 
-    On the black capture the real screen shows A_c = (b + lobe_cam lambda) A_w per pixel: the
-    leak's highlight sits where the gray pattern's does, scaled by lambda. So lambda is the
+    On the black capture the real screen shows A_c = (b + lobe_cam eta) A_w per pixel: the
+    leak's highlight sits where the gray pattern's does, scaled by eta. So eta is the
     least-squares slope of (A_c / A_w - b) on lobe_cam over the pixels where the lobe seen by
     the camera is above a tenth of its peak.
 
@@ -311,7 +311,7 @@ def black_lobe_share(
         valid: (H, W) pixels to use.
 
     Returns:
-        (3,) lambda; 0 where the lobe is zero or too few pixels show it.
+        (3,) eta; 0 where the lobe is zero or too few pixels show it.
     """
     out = np.zeros(3)
     for c in range(3):

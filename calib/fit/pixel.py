@@ -13,10 +13,10 @@ pattern, A(x) the black capture (or an estimate without one).
 The specular lobe is fitted as a diffuse baseline plus a tabulated lobe relative to the white
 screen, s(x) = (L_c,U - A_c) / (L_w,U - A_w) = b + lobe(t(x)) (:mod:`viewcomp.calib.fit.lobe`);
 its change with the eye scales with each pixel's own projected light, and with the share
-lambda of the black level that is projector light (its black leak, measured from the black
+eta of the black level that is projector light (its black leak, measured from the black
 capture's highlight; :func:`~viewcomp.calib.fit.lobe.black_lobe_share`):
 
-    L_c(x; I, eye) = L_c(x; I, cam) + diag(ds(x)) (W_w(x) f(I) + lambda A_w(x)),
+    L_c(x; I, eye) = L_c(x; I, cam) + diag(ds(x)) (W_w(x) f(I) + eta A_w(x)),
     ds(x) = lobe(t_eye(x)) - lobe(t_cam(x))
 
 so the compensation at any eye is one per-pixel linear solve (docs/RUNTIME.md): the fixed

@@ -64,8 +64,8 @@ def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
 def screen_at(model: RuntimeModel, eye: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The real screen seen from ``eye`` (pixel method): it shows M(x) f(I) + A(x) there.
 
-    M = Wc + diag(ds) Ww and A = Ac + ds (lambda Aw): the lobe's change scales the white
-    screen's light, and the share lambda (``lobe_black``) of its black level that is the
+    M = Wc + diag(ds) Ww and A = Ac + ds (eta Aw): the lobe's change scales the white
+    screen's light, and the share eta (``lobe_black``) of its black level that is the
     projector's leak (room light comes from elsewhere). Returns M (H, W, 3, 3) and A
     (H, W, 3), float32.
     """
