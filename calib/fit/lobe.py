@@ -166,7 +166,7 @@ def _tail(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     def resid(p: np.ndarray) -> np.ndarray:
         return p[0] + p[1] * np.exp(-p[2] * to * to) - yo
 
-    b0 = float(yo.min())
+    b0 = max(float(yo.min()), 0.0)
     c0 = max(float(yo.max() - b0), 1e-6) * float(np.exp(min(to.min() ** 2 * 30.0, 50.0)))
     fit = least_squares(
         resid,
@@ -188,7 +188,7 @@ def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     def resid(p: np.ndarray) -> np.ndarray:
         return (model(p) - y).ravel()
 
-    b0 = np.percentile(y, 5, axis=0)
+    b0 = np.maximum(np.percentile(y, 5, axis=0), 0.0)
     k0 = np.maximum(np.percentile(y, 99.5, axis=0) - b0, 1e-3)
     best = None
     for g0 in (5.0, 20.0, 80.0):

@@ -44,6 +44,11 @@ from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.geometry import ScreenGeometry
 
 DEFAULT_SMOOTH_PX = 3.0
+#: A real screen's per-pixel gain D in a channel it barely reflects is floored at this share of
+#: its largest channel's median gain.
+_GAIN_FLOOR = 1e-3
+#: Median gain below -this (units of f(110)): the gray capture is systematically below black.
+_DARK_NOISE = 0.01
 
 
 @dataclass(frozen=True)
@@ -175,11 +180,16 @@ def screen_model(
     f110 = np.array([np.interp(GRAY_LEVEL, np.arange(256), f_lut[:, c]) for c in range(3)])
     d = dec / f110
     if np.mean(d <= 0) > 0.01:
-        raise FitError(
-            f"{sub}/gray",
-            "darker than the black level over much of the image: is black.png really the "
-            "black pattern, and did the ambient light change between captures?",
-        )
+        if sub == "white" or np.any(np.median(d, axis=(0, 1)) < -_DARK_NOISE):
+            raise FitError(
+                f"{sub}/gray",
+                "darker than the black level over much of the image: is black.png really the "
+                "black pattern, and did the ambient light change between captures?",
+            )
+        # A real screen that reflects (almost) nothing in a channel, at an exposure set for
+        # its highlight: its gain there is the noise about 0. A small floor keeps the model
+        # invertible; the tone map then treats that channel as the dark one it is.
+        d = np.maximum(d, _GAIN_FLOOR * float(np.max(np.median(d, axis=(0, 1)))))
     return ScreenModel(W=wt * d[..., None, :], A=amb, ambient_measured=measured)
 
 
