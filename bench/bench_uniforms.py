@@ -1,6 +1,6 @@
 """Literals and flat inputs vs a uniform block in the fragment shader: prints one JSON object.
 
-The GL compensator compiles a model's numbers (kappa, gamma, the inverse LUT's position
+The GL compensator compiles a model's numbers (the lobe's black share, the inverse LUT's position
 constants) into its shader as ``#define`` literals and hands the frame's numbers (eye, tone
 map, the paper method's folded rows) from the vertex shader as flat inputs. This measures,
 in one process and on the same objects, the shipped shader against the same shader with
@@ -45,9 +45,9 @@ from viewcomp.shaders import build_program, load
 # The block: the frame's 4 vec4 (as v_frame), then the model's numbers.
 _BLOCK = (
     "layout(std140) uniform Params { vec4 v_frame[4]; vec4 p_sq_scale, p_sq_off, p_sq_lo, "
-    "p_sq_hi, p_kappa; float p_gamma; };"
+    "p_sq_hi, p_lobe_black; };"
 )
-_MODEL = {"SQ_SCALE": 0, "SQ_OFF": 1, "SQ_LO": 2, "SQ_HI": 3, "KAPPA": 4}  # vec4 slot - 4
+_MODEL = {"SQ_SCALE": 0, "SQ_OFF": 1, "SQ_LO": 2, "SQ_HI": 3, "LOBE_BLACK": 4}  # vec4 slot - 4
 
 
 def _ubo_loader(name: str) -> str:
@@ -71,15 +71,12 @@ class _UboCompensator(Compensator):
     def __init__(self, model: Any, ctx: Any, model_in_block: bool, **kw: Any) -> None:
         self._model_in_block = model_in_block
         super().__init__(model, ctx, **kw)
-        self._block = np.zeros(4 * 4 + 5 * 4 + 4, np.float32)
+        self._block = np.zeros(4 * 4 + 5 * 4, np.float32)
         if model_in_block:
             for key, slot in _MODEL.items():
                 if key in self._consts:
                     self._block[16 + 4 * slot : 16 + 4 * slot + 3] = _parse(str(self._consts[key]))
                     self._consts[key] = f"p_{key.lower()}.xyz"
-            if "GAMMA" in self._consts:
-                self._block[36] = _parse(str(self._consts["GAMMA"]))[0]
-                self._consts["GAMMA"] = "p_gamma"
         self._ubo = self._track(self.ctx.buffer(reserve=self._block.nbytes))
 
     def _program(self, method: int) -> tuple[Any, Any]:
