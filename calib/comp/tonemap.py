@@ -195,13 +195,13 @@ def choose_tone_map(
 
 
 #: The predicted tone map's search: alpha from PREDICTED_ALPHA_MAX down to PREDICTED_ALPHA_MIN
-#: on a 0.05 grid, beta on PREDICTED_BETAS times the image's mean white-screen level, then
-#: finer around the best; a video frame starts from the previous frame's choice (a local
-#: search). Alpha above 1 (brighter than the white screen would show) can be the best a dim
-#: or coloured screen can do.
+#: on a 0.1 grid, beta on PREDICTED_BETAS times the image's mean white-screen level, then
+#: alpha +-0.06 in 0.01 steps and beta +-0.03 in 0.005 steps around the best; a video frame
+#: starts from the previous frame's choice (a local search). Alpha above 1 (brighter than the
+#: white screen would show) can be the best a dim or coloured screen can do.
 PREDICTED_ALPHA_MIN = 0.2
 PREDICTED_ALPHA_MAX = 1.5
-PREDICTED_BETAS = np.linspace(-0.3, 0.6, 46)
+PREDICTED_BETAS = np.linspace(-0.3, 0.6, 31)
 #: Pixels of the thumbnail the predicted tone map looks at, at most (every k-th row and column).
 PREDICTED_PIXELS = 1024
 
@@ -311,12 +311,12 @@ def choose_predicted_tone_map(
                 best = ToneMap(float(alpha), best_k * scale, float(clipped[i]), float(err[i]))
 
     if start is None:
-        alphas = np.arange(PREDICTED_ALPHA_MAX, PREDICTED_ALPHA_MIN - 1e-9, -0.05)
+        alphas = np.arange(PREDICTED_ALPHA_MAX, PREDICTED_ALPHA_MIN - 1e-9, -0.1)
         visit(np.round(alphas, 2), PREDICTED_BETAS)
         assert best is not None
         visit(
-            np.round(np.arange(best.alpha + 0.04, best.alpha - 0.0401, -0.01), 2),
-            best_k + np.linspace(-0.02, 0.02, 11),
+            np.round(np.arange(best.alpha + 0.06, best.alpha - 0.0601, -0.01), 2),
+            best_k + np.linspace(-0.03, 0.03, 13),
         )
     else:
         # A local search: a 5 x 5 grid around the centre, moved to the best until it stays.
