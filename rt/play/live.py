@@ -260,6 +260,8 @@ def parse_line(line: str) -> Command | None:
         return None
     words = text.replace(",", " ").split()
     key, args = words[0].lower(), words[1:]
+    if key not in _WORDS | {"angle", "norm", "eye"}:
+        raise InputError(f"unknown command {words[0]!r:.30}; expected {_EXPECTED_LINE}")
     try:
         nums = [float(a) for a in args]
     except ValueError:
@@ -274,9 +276,7 @@ def parse_line(line: str) -> Command | None:
         return SetAngleNorm(check_norm(nums[0]))
     if key == "eye":
         return SetEye(check_eye(nums))
-    if key in _WORDS:
-        return _show_command(key, nums, f"`{key}`")
-    raise InputError(f"unknown command {words[0]!r:.30}; expected {_EXPECTED_LINE}")
+    return _show_command(key, nums, f"`{key}`")
 
 
 def parse_osc_message(

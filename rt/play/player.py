@@ -282,7 +282,7 @@ class PlayerStatus:
     ``file`` the path of the file on screen, ``position`` the time of the frame on screen
     (seconds from the file's first frame), ``angle`` degrees and ``eye`` metres of the eye
     the frame on screen was drawn for, ``fps`` presented frames per second (smoothed),
-    ``dropped`` late frames dropped so far.
+    ``dropped`` late frames dropped so far, ``blackout`` whether the screen is black.
     """
 
     file: str
@@ -363,6 +363,7 @@ class _Shown:
     still: bool
     at: float
     eye: tuple[float, float, float]
+    blackout: bool
 
 
 _ENDED = object()
@@ -537,7 +538,8 @@ class Player:
         return PlayerStatus(
             file=file, position=position, paused=self._paused,
             angle=eye_to_polar(np.asarray(eye))[0], eye=eye,  # type: ignore[arg-type]
-            fps=self._fps_now, dropped=self.stats.dropped, blackout=self._blackout,
+            fps=self._fps_now, dropped=self.stats.dropped,
+            blackout=self._blackout if shown is None else shown.blackout,
         )  # fmt: skip
 
     # ------------------------------------------------------------------ set-up
@@ -883,7 +885,7 @@ class Player:
             if not self._paused:
                 self._request_jump(index, position)
                 self._paused = True
-                self._show_next = False  # the frame on screen is the one held
+                self._show_next = shown is None  # else the frame on screen is the one held
                 log.info("paused at %.2f s of %s", position, self._file[1].name)
         elif isinstance(cmd, Resume):
             if self._paused:
@@ -1138,4 +1140,4 @@ class Player:
         self._drawn_eye = record.eye
         eye = tuple(float(v) for v in record.eye)
         self._drawn_key = (eye, self._blackout, renderer.identity)
-        self._shown = _Shown(idx, path, planes.time, still, t, eye)  # type: ignore[arg-type]
+        self._shown = _Shown(idx, path, planes.time, still, t, eye, self._blackout)  # type: ignore[arg-type]
