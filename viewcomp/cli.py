@@ -16,6 +16,7 @@ COMMANDS = (
     "capture",
     "calibrate",
     "render",
+    "preview",
     "evaluate",
     "demo",
     "play",
@@ -31,6 +32,7 @@ A typical session:
   viewcomp simulate caps                      ... or simulated captures, no hardware
   viewcomp calibrate caps -o screen.vcb       captures -> calibration bundle
   viewcomp render screen.vcb in.mp4 -o out.mp4 --angle 60
+  viewcomp preview screen.vcb photo.jpg -o seen.png --angle 60   what the audience sees
   viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
   viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
