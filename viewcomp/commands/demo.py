@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.eval.metrics import delta_e2000
+    from viewcomp.calib.eval.preview import band, labelled_row
     from viewcomp.calib.eval.testimages import natural_images
     from viewcomp.calib.fit.calibrate import Calibration, calibrate
     from viewcomp.calib.io.captureset import read_capture_set
@@ -73,17 +74,16 @@ def run(args: argparse.Namespace) -> int:
                 tiles[f"{m} method"] = sim.observe(screen, img, eye)
             de = {k: delta_e2000(v, ideal) for k, v in tiles.items()}
             table.append((iname, angle, de))
-            labelled = []
-            for k, v in tiles.items():
-                t = v.copy()
-                text = f"{k} @{angle}" + ("" if k.startswith("white") else f" dE {de[k]:.1f}")
-                cv2.putText(t, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255),
-                            2, cv2.LINE_AA)  # fmt: skip
-                labelled.append(t)
-            rows.append(np.concatenate(labelled, axis=1))
+            small = [cv2.resize(v, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+                     for v in tiles.values()]  # fmt: skip
+            heads = [[k, f"seen at {angle} deg" if k.startswith("white") else f"dE {de[k]:.1f}"]
+                     for k in tiles]  # fmt: skip
+            rows.append(labelled_row(small, heads))
         log(f"compensated {iname} for angles {', '.join(map(str, DEMO_ANGLES))}")
-    grid = np.concatenate(rows, axis=0)
-    grid = cv2.resize(grid, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    body = np.concatenate(rows, axis=0)
+    title = (f"what a viewer sees on the simulated glossy {args.screen} screen at each angle "
+             "(dE: mean CIEDE2000 vs the white screen, lower is better)")  # fmt: skip
+    grid = np.concatenate([band(body.shape[1], [title]), body], axis=0)
     picture = out / "demo.png"
     write_png(picture, grid)
     print("\nmean CIEDE2000 against the white screen (lower is better):")
@@ -102,6 +102,7 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     import numpy as np
 
     from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.eval.preview import labelled_row
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.sim.simulator import white_screen
     from viewcomp.rt.gl.context import GLUnavailable
@@ -129,9 +130,12 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     tiles = []
     for t, a, b in zip(times, frames_in, frames_out, strict=False):
         eye = track(t)
+        angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
         row = [sim.observe(white_screen(), a, eye), sim.observe(screen, a, eye),
                sim.observe(screen, b, eye)]  # fmt: skip
-        tiles.append(np.concatenate(row, axis=1))
+        heads = [["white screen (ideal)", f"viewer at {angle:.0f} deg, {t:.1f} s"],
+                 ["uncompensated", ""], ["compensated (GLSL, per-pixel)", ""]]  # fmt: skip
+        tiles.append(labelled_row(row, heads))
     viewer = out / "viewer.mp4"
     _write_frames(viewer, tiles, 25)
     log(f"what the walking viewer sees (white screen | uncompensated | compensated): {viewer}")
