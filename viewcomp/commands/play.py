@@ -110,8 +110,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from viewcomp.rt.play.player import Player, PlayerError, PlayerOptions, list_monitors
 
-    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
-                        format="viewcomp play: %(message)s")  # fmt: skip
+    logging.getLogger("viewcomp").setLevel(logging.WARNING if args.quiet else logging.INFO)
     try:
         if args.list_monitors:
             for m in list_monitors():
