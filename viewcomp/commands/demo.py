@@ -8,6 +8,7 @@ from pathlib import Path
 from viewcomp.commands._common import add_simulator_arguments
 
 DEMO_ANGLES = (45, 60, 90, 120, 135)
+WALK_CSV = "# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -110,9 +111,8 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     from viewcomp.rt.render.tracks import load_angle_track
 
     clip, track_csv = out / "clip.mp4", out / "walk.csv"
-    _write_clip(clip, list(images.values()), seconds=4.0, rate=25)
-    walk = "# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n"
-    write_text_atomic(track_csv, walk)
+    write_pan_clip(clip, list(images.values()), seconds=4.0, rate=25)
+    write_text_atomic(track_csv, WALK_CSV)
     v = cal.rig.viewer
     track = load_angle_track(track_csv, v.distance, v.height)
     comp_clip = out / "clip-compensated.mp4"
@@ -142,8 +142,9 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     print(f"video: {viewer.resolve()}")
 
 
-def _write_clip(path: Path, images: list, seconds: float, rate: int) -> None:
-    """A slow pan across the images with a 440 Hz tone (the demo's input clip)."""
+def write_pan_clip(path: Path, images: list, seconds: float, rate: int) -> None:
+    """A slow pan across the images with a 440 Hz tone (the demo's input clip; also
+    examples/make_inputs.py's), written atomically."""
     import numpy as np
 
     n = round(seconds * rate)
