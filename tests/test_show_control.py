@@ -304,3 +304,14 @@ def test_cli_stdin_status_and_osc_feedback(display: str, cal: Any, clips: list[P
     assert "stdin: dropped: unknown command 'bogus'" in err
     assert "osc: dropped: /viewcomp/angle takes one number" in err
     assert all(line.startswith("viewcomp play: ") for line in err.splitlines()), err
+
+
+@pytest.mark.gl
+def test_embed_example_with_the_frame_in_a_host_texture(display: str) -> None:
+    root = Path(__file__).resolve().parents[1]
+    p = subprocess.run([sys.executable, str(root / "examples" / "embed_host.py"), "--frames",
+                        "20", "--check", "--size", "320x240", "--texture"], capture_output=True,
+                       text=True, timeout=120)  # fmt: skip
+    print(p.stdout)
+    assert p.returncode == 0, p.stderr
+    assert "window vs numpy reference" in p.stdout

@@ -1090,7 +1090,7 @@ class Player:
             self._ctx.screen.use()
             self._ctx.screen.clear(0.0, 0.0, 0.0, 1.0)
         else:
-            renderer.draw(self._ctx.screen, self._viewport, size=self._fb_size)
+            renderer.draw(self._ctx.screen, self._viewport, size=self._fb_size, clear=True)
         if self._show_overlay and not self._blackout:
             if t0 - self._overlay.updated > 0.25:
                 self._overlay.update(self._overlay_lines())
