@@ -8,7 +8,7 @@ of any size; :func:`make_compensation` gives a real one from a small simulated c
 The geometry is a flat screen z = 0 lit by a projector at (0, -0.03, 0.5) looking at the
 origin (vertical field of view 20 degrees); the calibration camera is at (0, 0.035, 0.5).
 Colour mixing matrices are smooth random fields, diagonal-dominant; responses are gamma 2.2
-curves; the specular lobe has kappa ~0.3 and gamma ~20.
+curves; the specular lobe is kappa (R.V)^20 with kappa ~0.3, tabulated over the mirror angle.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation
+from viewcomp.calib.model.lobe import LOBE_N
 from viewcomp.calib.model.runtime import Method, RuntimeModel
 from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.calib.world.geometry import meet_screen
@@ -65,6 +66,13 @@ def _smooth_field(rng: np.random.Generator, h: int, w: int, n: int) -> np.ndarra
     return out
 
 
+def phong_table(kappa: np.ndarray, gamma: float) -> np.ndarray:
+    """kappa (R.V)^gamma as a lobe table over the mirror angle: (LOBE_N, 3) float32, with
+    R.V = 1 - t^2 at the table's coordinate t (viewcomp.calib.model.lobe)."""
+    t = np.linspace(0.0, 1.0, LOBE_N)
+    return (np.asarray(kappa)[None, :] * (1.0 - t * t)[:, None] ** gamma).astype(np.float32)
+
+
 def synthetic_model(
     method: Method = "pixel",
     width: int = 160,
@@ -75,7 +83,8 @@ def synthetic_model(
     """A random but well-conditioned RuntimeModel of any size for ``pixel`` or ``paper``.
 
     ``pixel``: per-pixel Ww (diagonal ~0.8, off-diagonal ~0.05), Wc = screen colour
-    (0.9, 0.65, 0.45) times a similar field, ambients ~0.01..0.02, kappa ~0.3, gamma 20,
+    (0.9, 0.65, 0.45) times a similar field, ambients ~0.01..0.02, a lobe kappa (R.V)^20
+    (kappa ~0.3) tabulated over the mirror angle,
     fwd_lut = l^2.2 (per channel exponents 2.1..2.3), inv_lut its inverse on [0, 1] (sampled
     uniformly in the square root, as docs/RUNTIME.md says).
     ``paper``: global Ww, Wc_inv, fwd_lut rho_w and inv_lut rho_c^-1 on [0, max rho_c].
@@ -93,8 +102,8 @@ def synthetic_model(
         refl=refl,
         pos=pos,
         cam_eye=CAMERA.astype(np.float32),
-        kappa=np.array([0.3, 0.28, 0.32], np.float32),
-        gamma=20.0,
+        lobe=phong_table(np.array([0.3, 0.28, 0.32]), 20.0),
+        lobe_half=False,
     )
     if method == "paper":
         ww = np.array([[0.85, 0.06, 0.02], [0.05, 0.9, 0.05], [0.02, 0.07, 0.8]], np.float32)

@@ -11,7 +11,7 @@
 // - The frame is read with NEAREST textureLod(.., 0) at texel centres (~1.5x cheaper than
 //   texelFetch from a 2D texture there); the LUTs, the maps and the view cache are buffer
 //   textures read with texelFetch (cheaper still: an index, no coordinates).
-// - The numbers fixed for a Compensator (grid size, LUT domain, lobe) are compiled in as
+// - The numbers fixed for a Compensator (grid size, LUT domain, lobe shape) are compiled in as
 //   #define literals, and what changes per frame (eye, tone map, the paper method's folded
 //   matrices) comes from the vertex shader as flat inputs v_frame[], not from uniforms: a
 //   uniform block read here cost 10-20 % more time per draw at 1080p (docs/BENCHMARKS.md).
@@ -46,11 +46,16 @@
 #define SQ_LO vec3(0.0)
 #define SQ_HI vec3(1.0)
 #endif
-#ifndef KAPPA
-#define KAPPA vec3(0.0)
+// The specular lobe: LOBE_N table entries (u_lobe), the half-vector angle (true) or the
+// mirror angle (false) (viewcomp.calib.model.lobe).
+#ifndef LOBE_N
+#define LOBE_N 2
 #endif
-#ifndef GAMMA
-#define GAMMA 1.0
+#ifndef LOBE_HALF
+#define LOBE_HALF true
+#endif
+#ifndef LOBE_BLACK
+#define LOBE_BLACK vec3(0.0)  // the projector leak's share of the black level
 #endif
 
 #include "yuv.glsl"
@@ -67,9 +72,14 @@ uniform samplerBuffer u_inv;  // RG32F, 3 x N: [N c + i] = (inv_lut[i, c], inv_l
 // pixel method: the per-pixel maps (viewcomp.rt.gl.compensator.pixel_texels), 8 RGBA32F
 // texels per pixel side by side: texel k of grid pixel (x, y) is u_maps[8 (y W + x) + k].
 uniform samplerBuffer u_maps;
+uniform samplerBuffer u_lobe;  // RGBA32F, LOBE_N: the lobe table (RuntimeModel.lobe) | 0
 
 vec2 inv_pair(int c, int i) {
     return texelFetch(u_inv, N_INV * c + i).xy;
+}
+
+vec3 lobe_entry(int i) {
+    return texelFetch(u_lobe, i).rgb;
 }
 
 PixelMaps read_maps(ivec2 p) {
@@ -113,8 +123,8 @@ void main() {
     int k = sub.x + VIEW_BX * sub.y;
     vec4 g0, g1, g2;
     vec3 b, d;
-    view_terms(read_maps(q / block), v_frame[0].xyz, KAPPA, GAMMA, SQ_SCALE, SQ_OFF,
-               g0, g1, g2, b, d);
+    view_terms(read_maps(q / block), v_frame[0].xyz, LOBE_HALF, LOBE_N, LOBE_BLACK, SQ_SCALE,
+               SQ_OFF, g0, g1, g2, b, d);
     frag_color = k == 0 ? g0 : (k == 1 ? g1 : (k == 2 ? g2 : (k == 3 ? vec4(b, 0.0)
                  : (k == 4 ? vec4(d, 0.0) : vec4(0.0)))));
 #else
@@ -128,7 +138,7 @@ void main() {
 
 #if METHOD == 1
     vec3 y = solve_pixel(read_maps(p), lut_forward(level), v_frame[0].xyz, v_frame[0].w,
-                         v_frame[1].x, KAPPA, GAMMA);
+                         v_frame[1].x, LOBE_HALF, LOBE_N, LOBE_BLACK);
     vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 3
     vec3 t2 = cached_t2(VIEW(p, 0), VIEW(p, 1), VIEW(p, 2), VIEW(p, 3).xyz, VIEW(p, 4).xyz,

@@ -4,15 +4,17 @@
 //
 // Nothing here reads a texture, a uniform or a macro: the including file fetches the
 // per-pixel values and passes the constants as arguments (literals in both hosts, which the
-// compiler folds). The one thing it must define is how the inverse LUT is read:
+// compiler folds). What it must define is how the inverse LUT and the lobe table are read:
 vec2 inv_pair(int c, int i);  // (inv_lut[i, c], inv_lut[i + 1, c]); at i = N - 1 the last twice
+vec3 lobe_entry(int i);       // lobe[i] (RGB), i in 0..n - 1 (RuntimeModel.lobe)
 
 // The pixel method's per-pixel values at one grid pixel: rows of Ww | Aw (w0..w2), rows of
-// Wc | Ac (c0..c2), the unit reflection vector R, the surface point p (metres) | the
-// camera's lobe max(R . normalize(cam_eye - p), 0)^gamma (RuntimeModel.cam_lobe).
+// Wc | Ac (c0..c2), the unit reflection vector R | the camera's lobe (red), the surface
+// point's x, y (metres; z = 0, the screen plane) | the camera's lobe (green, blue)
+// (RuntimeModel.cam_lobe).
 struct PixelMaps {
     vec4 w0, w1, w2, c0, c1, c2;
-    vec3 refl;
+    vec4 refl;
     vec4 pos;
 };
 
@@ -25,23 +27,50 @@ PixelMaps pixel_maps(vec4 t0, vec4 t1, vec4 t2, vec4 t3, vec4 t4, vec4 t5, vec4 
     m.c0 = t3;
     m.c1 = t4;
     m.c2 = t5;
-    m.refl = t6.xyz;
+    m.refl = t6;
     m.pos = t7;
     return m;
 }
 
-// The specular lobe's change from the camera to the eye, per camera channel:
-// ds = kappa ((R . V_eye)^+^gamma - the camera's lobe) (reference.lobe_change).
-vec3 lobe_change(PixelMaps m, vec3 eye, vec3 kappa, float gamma) {
-    float lobe_eye = pow(max(dot(m.refl, normalize(eye - m.pos.xyz)), 0.0), gamma);
-    return kappa * (lobe_eye - m.pos.w);
+// The lobe coordinate t = sqrt(1 - cos angle) of the surface point p seen from the eye
+// (viewcomp.calib.model.lobe.lobe_position): the angle between N = +z and the half vector
+// (half_angle), or between R and V.
+float lobe_position(vec3 refl, vec3 p, vec3 eye, bool half_angle) {
+    vec3 v = normalize(eye - p);
+    float c;
+    if (half_angle) {
+        vec3 h = vec3(v.x - refl.x, v.y - refl.y, v.z + refl.z);  // Y + V, Y = R mirrored
+        c = h.z / length(h);
+    } else {
+        c = dot(refl, v);
+    }
+    return sqrt(max(1.0 - c, 0.0));
+}
+
+// The lobe at t: linear interpolation in the n-entry table, ends held (lobe.lobe_lookup).
+vec3 lobe_value(float t, int n) {
+    float x = clamp(t, 0.0, 1.0) * float(n - 1);
+    int i = min(int(x), n - 2);
+    vec3 a = lobe_entry(i);
+    return a + (lobe_entry(i + 1) - a) * (x - float(i));
+}
+
+// The specular ratio's change from the camera to the eye, per camera channel:
+// ds = lobe(t_eye) - the camera's lobe (reference.lobe_change).
+vec3 lobe_change(PixelMaps m, vec3 eye, bool half_angle, int n) {
+    float t = lobe_position(m.refl.xyz, vec3(m.pos.xy, 0.0), eye, half_angle);
+    return lobe_value(t, n) - vec3(m.refl.w, m.pos.z, m.pos.w);
+}
+
+// The screen's black level at the eye, Ac + ds (share Aw), share = the projector leak's
+// part of the black level (reference.screen_at).
+vec3 black_at(PixelMaps m, vec3 ds, vec3 share) {
+    return vec3(m.c0.w, m.c1.w, m.c2.w) + ds * share * vec3(m.w0.w, m.w1.w, m.w2.w);
 }
 
 // The adjugate of M = Wc + diag(ds) Ww at the eye as columns k0, k1, k2 (M^-1 = [k0 k1 k2]
 // / det); returns det.
-float adjugate(PixelMaps m, vec3 eye, vec3 kappa, float gamma,
-               out vec3 k0, out vec3 k1, out vec3 k2) {
-    vec3 ds = lobe_change(m, eye, kappa, gamma);
+float adjugate(PixelMaps m, vec3 ds, out vec3 k0, out vec3 k1, out vec3 k2) {
     vec3 r0 = m.c0.xyz + ds.x * m.w0.xyz;
     vec3 r1 = m.c1.xyz + ds.y * m.w1.xyz;
     vec3 r2 = m.c2.xyz + ds.z * m.w2.xyz;
@@ -51,15 +80,16 @@ float adjugate(PixelMaps m, vec3 eye, vec3 kappa, float gamma,
     return dot(r0, k0);
 }
 
-// Pixel method, solved: the projector light y with M y = alpha (Ww pw + Aw) + beta - Ac
-// (unclamped; pw = the forward LUT of the frame's levels).
-vec3 solve_pixel(PixelMaps m, vec3 pw, vec3 eye, float alpha, float beta, vec3 kappa,
-                 float gamma) {
+// Pixel method, solved: the projector light y with M y = alpha (Ww pw + Aw) + beta - A at
+// the eye (unclamped; pw = the forward LUT of the frame's levels).
+vec3 solve_pixel(PixelMaps m, vec3 pw, vec3 eye, float alpha, float beta, bool half_angle,
+                 int n_lobe, vec3 share) {
+    vec3 ds = lobe_change(m, eye, half_angle, n_lobe);
     vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
         + vec3(m.w0.w, m.w1.w, m.w2.w);
-    vec3 b = alpha * cw + beta - vec3(m.c0.w, m.c1.w, m.c2.w);
+    vec3 b = alpha * cw + beta - black_at(m, ds, share);
     vec3 k0, k1, k2;
-    float det = adjugate(m, eye, kappa, gamma, k0, k1, k2);
+    float det = adjugate(m, ds, k0, k1, k2);
     return (k0 * b.x + k1 * b.y + k2 * b.z) / det;
 }
 
@@ -72,19 +102,22 @@ vec3 pixel_t2(vec3 y, vec3 scale, vec3 off, vec3 lo, vec3 hi) {
 }
 
 // The view cache of one pixel for a held eye (docs/RUNTIME.md): y = alpha (G pw + a) +
-// beta b - d with G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1, d = M^-1 Ac, every row already
-// scaled to t2 as pixel_t2 does (d also shifted by off). Out: rows i of (G | a) in g0..g2.
-void view_terms(PixelMaps m, vec3 eye, vec3 kappa, float gamma, vec3 scale, vec3 off,
-                out vec4 g0, out vec4 g1, out vec4 g2, out vec3 b, out vec3 d) {
+// beta b - d with G = M^-1 Ww, a = M^-1 Aw, b = M^-1 1, d = M^-1 A (A the black level at
+// the eye), every row already scaled to t2 as pixel_t2 does (d also shifted by off). Out:
+// rows i of (G | a) in g0..g2.
+void view_terms(PixelMaps m, vec3 eye, bool half_angle, int n_lobe, vec3 share, vec3 scale,
+                vec3 off, out vec4 g0, out vec4 g1, out vec4 g2, out vec3 b, out vec3 d) {
+    vec3 ds = lobe_change(m, eye, half_angle, n_lobe);
     vec3 k0, k1, k2;
-    float det = adjugate(m, eye, kappa, gamma, k0, k1, k2);
+    float det = adjugate(m, ds, k0, k1, k2);
     vec3 s = scale / det;
     vec3 gc0 = (k0 * m.w0.x + k1 * m.w1.x + k2 * m.w2.x) * s;  // column 0 of G
     vec3 gc1 = (k0 * m.w0.y + k1 * m.w1.y + k2 * m.w2.y) * s;
     vec3 gc2 = (k0 * m.w0.z + k1 * m.w1.z + k2 * m.w2.z) * s;
     vec3 a = (k0 * m.w0.w + k1 * m.w1.w + k2 * m.w2.w) * s;
     b = (k0 + k1 + k2) * s;
-    d = (k0 * m.c0.w + k1 * m.c1.w + k2 * m.c2.w) * s + off;
+    vec3 black = black_at(m, ds, share);
+    d = (k0 * black.x + k1 * black.y + k2 * black.z) * s + off;
     g0 = vec4(gc0.x, gc1.x, gc2.x, a.x);
     g1 = vec4(gc0.y, gc1.y, gc2.y, a.y);
     g2 = vec4(gc0.z, gc1.z, gc2.z, a.z);

@@ -6,18 +6,24 @@
 // hook: its #define lines (literals) first, then the file with its includes expanded.
 //
 // Defines: VC_LUT_W the width of VC_LUT; VC_N_INV the inverse LUT's entries N.
+// VC_LUT has 3 rows: the forward LUT, the inverse LUT and (pixel method) the lobe table.
 
 #include "compensate_core.glsl"
 
-// VC_LUT row 0: the forward LUT at levels 0..255; row 1: the inverse LUT's N entries (RGB).
+// VC_LUT row 0: the forward LUT at levels 0..255; row 1: the inverse LUT's N entries (RGB);
+// row 2: the lobe table (RGB). The texture coordinate of row r is (r + 0.5) / 3.
 vec4 vc_lut(float x, float row) {
     return texture(VC_LUT, vec2((x + 0.5) / VC_LUT_W, row));
 }
 
 vec2 inv_pair(int c, int i) {
-    vec4 a = vc_lut(float(i), 0.75);
-    vec4 b = vc_lut(float(min(i + 1, VC_N_INV - 1)), 0.75);
+    vec4 a = vc_lut(float(i), 0.5);
+    vec4 b = vc_lut(float(min(i + 1, VC_N_INV - 1)), 0.5);
     return vec2(a[c], b[c]);
+}
+
+vec3 lobe_entry(int i) {
+    return vc_lut(float(i), 2.5 / 3.0).rgb;
 }
 
 // Forward LUT at fractional levels 0..255 (video after mpv's yuv -> RGB is not on integer
@@ -25,9 +31,10 @@ vec2 inv_pair(int c, int i) {
 vec3 vc_forward(vec3 level) {
     vec3 t = clamp(level, 0.0, 255.0);
     vec3 i0 = min(floor(t), vec3(254.0));
-    vec3 a = vec3(vc_lut(i0.r, 0.25).r, vc_lut(i0.g, 0.25).g, vc_lut(i0.b, 0.25).b);
-    vec3 b = vec3(vc_lut(i0.r + 1.0, 0.25).r, vc_lut(i0.g + 1.0, 0.25).g,
-                  vc_lut(i0.b + 1.0, 0.25).b);
+    vec3 a = vec3(vc_lut(i0.r, 0.5 / 3.0).r, vc_lut(i0.g, 0.5 / 3.0).g,
+                  vc_lut(i0.b, 0.5 / 3.0).b);
+    vec3 b = vec3(vc_lut(i0.r + 1.0, 0.5 / 3.0).r, vc_lut(i0.g + 1.0, 0.5 / 3.0).g,
+                  vc_lut(i0.b + 1.0, 0.5 / 3.0).b);
     return a + (b - a) * (t - i0);
 }
 

@@ -3,8 +3,10 @@
 // for the eye as the GL compensator's compensate.frag.glsl does.
 //
 // Defines (literals, besides those of mpv_lut.glsl): VC_S_INIT, VC_O_INIT (vec4[8]: texel k
-// of the maps = VC_S[k] t + VC_O[k] for the texture's value t), VC_KAPPA, VC_GAMMA, VC_SQ_SCALE, VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI
-// (pixel_t2); VC_PARAM 0: the eye VC_EYE and the tone map VC_ALPHA, VC_BETA are fixed;
+// of the maps = VC_S[k] t + VC_O[k] for the texture's value t), VC_LOBE_HALF (true: the
+// half-vector angle), VC_LOBE_N (the lobe table's entries, row 2 of VC_LUT), VC_LOBE_BLACK
+// (the projector leak's share of the black level), VC_SQ_SCALE,
+// VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI (pixel_t2); VC_PARAM 0: the eye VC_EYE and the tone map VC_ALPHA, VC_BETA are fixed;
 // VC_PARAM 1: both follow the parameter angle (degrees; mpv's PARAM), the eye at
 // (VC_DIST cos, VC_HEIGHT, VC_DIST sin) and the tone map interpolated in a table of
 // VC_TONE_N entries from VC_TONE_FIRST degrees every VC_TONE_STEP (VC_TONE_ALPHA_INIT,
@@ -50,8 +52,8 @@ vec4 hook() {
         texture(VC_MAP4, uv) * VC_S[4] + VC_O[4], texture(VC_MAP5, uv) * VC_S[5] + VC_O[5],
         texture(VC_MAP6, uv) * VC_S[6] + VC_O[6], texture(VC_MAP7, uv) * VC_S[7] + VC_O[7]);
     vec2 tone = vc_tone();
-    vec3 y = solve_pixel(m, vc_forward(src.rgb * 255.0), vc_eye(), tone.x, tone.y, VC_KAPPA,
-                         VC_GAMMA);
+    vec3 y = solve_pixel(m, vc_forward(src.rgb * 255.0), vc_eye(), tone.x, tone.y,
+                         VC_LOBE_HALF, VC_LOBE_N, VC_LOBE_BLACK);
     vec3 t2 = pixel_t2(y, VC_SQ_SCALE, VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI);
     return vec4(quantise(lut_inverse_sq(t2)), src.a);
 }

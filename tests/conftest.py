@@ -1,4 +1,5 @@
-"""Shared fixtures: one headless GL context per session for tests marked ``gl``.
+"""Shared fixtures: one headless GL context per session for tests marked ``gl``, and the
+folder of measured materials.
 
 Tests marked ``gl`` are skipped when no OpenGL 3.3 context can be made, unless the
 environment sets ``VIEWCOMP_REQUIRE_GL=1`` or ``CI=true`` (as CI services do): then they fail
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -56,3 +58,17 @@ def session_gl_current() -> Iterator[None]:
     ctx = _GL.get("ctx")
     if ctx is not None:
         ctx.__enter__()
+
+
+@pytest.fixture(scope="session")
+def materials_dir() -> Path:
+    """The folder of measured materials beside the project: <repo>/tests/.. -> <repo>/..,
+    then shared/data/materials (read from there, never copied into the repository). Missing:
+    skip, or fail where CI=true (a CI must not pass by skipping)."""
+    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "materials"
+    if not (folder / "spectralon.npz").is_file():
+        reason = f"measured materials not found at {folder}"
+        if os.environ.get("CI") == "true":
+            pytest.fail(reason + " (CI=true)", pytrace=False)
+        pytest.skip(reason)
+    return folder

@@ -35,8 +35,21 @@ def world():
 def test_per_pixel_fits_recover_the_simulators_truth(world):
     sim, screen, _, _, cal = world
     lobe = cal.pixel.lobe
-    assert abs(lobe.gamma - screen.shininess) < 0.15 * screen.shininess
-    np.testing.assert_allclose(lobe.kappa, screen.k_s / 0.85, rtol=0.1)
+    # The lobe's change from the camera to an eye, as the simulator's Phong lobe makes it
+    # (relative to the white screen's albedo 0.85).
+    g = cal.pixel.geometry
+    for angle in (60, 120):
+        eye = eye_from_angle(angle, 0.5, 0.035)
+        truth = (
+            screen.k_s
+            / 0.85
+            * (
+                np.maximum(g.rv(eye), 0) ** screen.shininess
+                - np.maximum(g.rv(g.camera), 0) ** screen.shininess
+            )
+        )
+        est = lobe.at(g, eye) - lobe.at(g, g.camera)
+        np.testing.assert_allclose(est, truth[..., None] * np.ones(3), atol=0.04)
     truth = sim.true_mixing(screen, sim.geometry.camera, vignetting=True)
     # W_c(x) f = M(x) f_true: compare the colour mixing up to the projector's scale.
     # Each column j is known up to the scale of f_j's normalisation: compare per column.
@@ -61,8 +74,8 @@ def test_per_pixel_compensation_closes_the_loop_where_reachable(world):
 
 
 def test_per_pixel_solve_is_the_limit_of_the_fixed_point_feedback(world):
-    """docs/MODEL.md's feedback P <- Wc^-1 (T - A_c - ds Ww P), iterated where it converges,
-    ends where our one-step per-pixel solve starts."""
+    """docs/MODEL.md's feedback P <- Wc^-1 (T - A_c - ds (Ww P + lambda Aw)), iterated where
+    it converges, ends where our one-step per-pixel solve starts."""
     _, _, _, _, cal = world
     m = cal.pixel.runtime_model()
     image = uniform((90, 70, 80), W, H)
@@ -74,7 +87,7 @@ def test_per_pixel_solve_is_the_limit_of_the_fixed_point_feedback(world):
         wc_inv = np.linalg.inv(m.Wc.astype(np.float64))
         p = np.einsum("hwij,hwj->hwi", wc_inv, target - m.Ac)
         for _ in range(200):
-            spec = ds * np.einsum("hwij,hwj->hwi", m.Ww, p)
+            spec = ds * (np.einsum("hwij,hwj->hwi", m.Ww, p) + m.lobe_black * m.Aw)
             p = np.einsum("hwij,hwj->hwi", wc_inv, target - m.Ac - spec)
         np.testing.assert_allclose(p, exact, atol=2e-4)
 
@@ -125,9 +138,26 @@ def test_saturated_capture_is_refused_by_name(world, tmp_path):
 
 def test_mirrored_ramp_and_swapped_patterns_are_refused(world, tmp_path):
     sim, _, white, real, _ = world
+    # The real screen's ramp serves the paper's method alone: without it the bundle holds
+    # the per-pixel method, says why, and refuses the paper's method by name.
     mirrored = dict(real, ramp=real["ramp"][:, ::-1].copy())
-    with pytest.raises(FitError, match="screen/ramp"):
-        calibrate(capture_set_from_raw(sim.rig, white, mirrored))
+    cal = calibrate(capture_set_from_raw(sim.rig, white, mirrored))
+    assert cal.methods == ("pixel",) and "screen/ramp" in cal.info["paper_error"]
+    with pytest.raises(BundleError, match=r"per-pixel method.*screen/ramp.*--method pixel"):
+        Compensation(cal, "paper")
+    path = tmp_path / "pixel-only.vcb"
+    cal.save(path)
+    again = Calibration.load(path)
+    assert again.methods == ("pixel",) and again.paper is None
+    image = uniform((120, 40, 200), W, H)
+    eye = eye_from_angle(70, 0.5, 0.035)
+    np.testing.assert_array_equal(
+        Compensation(cal, "pixel").compensate_image(image, eye)[0],
+        Compensation(again, "pixel").compensate_image(image, eye)[0],
+    )
+    # The white screen's ramp is the per-pixel method's response: mirrored, nothing fits.
+    with pytest.raises(FitError, match="white/ramp"):
+        calibrate(capture_set_from_raw(sim.rig, dict(white, ramp=white["ramp"][:, ::-1]), real))
     swapped = dict(real, red=real["green"], green=real["red"])
     with pytest.raises(FitError, match=r"swapped"):
         calibrate(capture_set_from_raw(sim.rig, white, swapped))
@@ -163,7 +193,7 @@ def test_without_black_capture_ambient_is_estimated(tmp_path):
 
 def test_small_calibration_helper_is_real():
     cal = small_calibration()
-    assert cal.shape == (32, 64) and cal.pixel.lobe.kappa.max() > 0.2
+    assert cal.shape == (32, 64) and cal.pixel.lobe.peak.max() > 0.2
 
 
 def test_read_capture_set_names_the_missing_file(tmp_path):

@@ -131,12 +131,12 @@ def test_pixel_texels_layout() -> None:
     np.testing.assert_array_equal(t[:, :, 3:6, :3], model.Wc)
     np.testing.assert_array_equal(t[:, :, 3:6, 3], model.Ac)
     np.testing.assert_array_equal(t[:, :, 6, :3], model.refl)
-    np.testing.assert_array_equal(t[:, :, 7, :3], model.pos)
-    np.testing.assert_array_equal(t[:, :, 7, 3], model.cam_lobe)
-    assert not np.any(t[:, :, 6, 3])
+    np.testing.assert_array_equal(t[:, :, 7, :2], model.pos[..., :2])
+    np.testing.assert_array_equal(t[:, :, 6, 3], model.cam_lobe[..., 0])
+    np.testing.assert_array_equal(t[:, :, 7, 2:], model.cam_lobe[..., 1:])
     # At the camera's own position the lobe does not change.
     assert np.abs(lobe_change(model, model.cam_eye)).max() == 0.0
-    assert 0.0 < model.cam_lobe.max() <= 1.0
+    assert 0.0 < model.cam_lobe.max() <= 0.35
 
 
 @pytest.mark.parametrize(
@@ -149,9 +149,11 @@ def test_pixel_texels_layout() -> None:
         (lambda m: replace(m, refl=m.refl[0]), r"refl must be \(H, W, 3\), got \(32, 3\)"),
         (lambda m: replace(m, inv_lut=m.inv_lut[:, 0]), r"inv_lut must be \(N, 3\)"),
         (lambda m: replace(m, fwd_lut=m.fwd_lut[:100]), r"fwd_lut must be \(256, 3\)"),
-        (lambda m: replace(m, kappa=np.zeros(2, np.float32)), r"kappa must be \(3,\)"),
+        (lambda m: replace(m, lobe=np.zeros((9, 2), np.float32)), r"lobe must be \(n, 3\)"),
+        (lambda m: replace(m, lobe_black=np.zeros(2, np.float32)), r"lobe_black must be \(3,\)"),
         (lambda m: replace(m, Wc=np.where(m.Wc > 0.5, np.nan, m.Wc)), r"Wc holds NaN"),
-        (lambda m: replace(m, gamma=float("inf")), r"gamma must be finite|not finite"),
+        (lambda m: replace(m, lobe=np.full((9, 3), np.inf, np.float32)), r"lobe holds|not finite"),
+        (lambda m: replace(m, pos=m.pos + np.float32(0.01)), r"screen plane z = 0"),
         (lambda m: replace(m, method="magic"), r"model.method must be one of"),
     ],
 )

@@ -1,5 +1,6 @@
 """Measured materials (viewcomp.calib.sim.materials): the README's check values, spectralon as
-a white reference, the horizon, the finite lens and the load errors.
+a white reference, the horizon, the finite lens and the load errors; and materials as the
+simulator's screens (Simulator.reflectance, the lens, the cache, the ambient albedo).
 
 The measured data is read from ``shared/data/materials/`` beside the project (never copied
 into it): missing, these tests skip, unless CI=true, where they fail.
@@ -8,7 +9,7 @@ into it): missing, these tests skip, unless CI=true, where they fail.
 from __future__ import annotations
 
 import math
-import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,16 @@ from viewcomp.calib.sim.materials import (
     lens_samples,
     load_material,
 )
+from viewcomp.calib.sim.simulator import (
+    LENS_RADIUS_M,
+    LENS_SAMPLES,
+    REFLECTANCE_CACHE,
+    Simulator,
+    SimulatorError,
+    material_screen,
+    simulation_rig,
+)
+from viewcomp.calib.sim.testing import small_simulator
 
 # The README's table: BRDF (RGB, per steradian, three significant digits) at t degrees past
 # the mirror direction.
@@ -51,20 +62,6 @@ CHECK_TABLE: dict[str, dict[float, tuple[float, float, float]]] = {
         20: (0.318, 0.318, 0.317),
     },
 }
-
-
-@pytest.fixture(scope="module")
-def materials_dir() -> Path:
-    """The folder of measured materials beside the project: /work/main/tests/.. -> /work, then
-    shared/data/materials. Missing: skip, or fail where CI=true (a CI must not pass by
-    skipping)."""
-    folder = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "materials"
-    if not (folder / "spectralon.npz").is_file():
-        reason = f"measured materials not found at {folder}"
-        if os.environ.get("CI") == "true":
-            pytest.fail(reason + " (CI=true)", pytrace=False)
-        pytest.skip(reason)
-    return folder
 
 
 def in_plane(angle_deg: float) -> np.ndarray:
@@ -286,3 +283,90 @@ def test_material_is_checked_and_immutable() -> None:
     bad = {**good_arrays(), "b2": np.zeros(20)}
     with pytest.raises(MaterialError, match=r"'broken': b2 has shape \(20,\)"):
         Material(name="broken", **bad)
+
+
+# -- measured materials as simulator screens ------------------------------------------------
+
+
+def check_simulator(eye_t_deg: float, distance: float = 0.5) -> tuple[Simulator, np.ndarray]:
+    """A 9x5 projector whose centre pixel lights the screen's origin from 10 degrees off the
+    normal toward +x, and the README's eye t degrees past the mirror direction (same distance).
+    Returns the simulator and the eye (3,)."""
+    rig = simulation_rig()
+    rig = replace(
+        rig,
+        projector=replace(
+            rig.projector,
+            resolution=(9, 5),
+            principal_point=None,
+            position=tuple(float(v) for v in distance * in_plane(10.0)),
+            look_at=(0.0, 0.0, 0.0),
+        ),
+    )
+    return Simulator(rig=rig), distance * in_plane(-(10.0 + eye_t_deg))
+
+
+@pytest.mark.parametrize("name", sorted(CHECK_TABLE))
+def test_check_table_through_the_simulator(materials_dir: Path, name: str) -> None:
+    # A point lens (radius 0, one sample): the simulator's reflectance at the centre pixel is
+    # pi times the README's BRDF, the projector and the eye giving wi and wo.
+    screen = material_screen(materials_dir / f"{name}.npz", lens_radius_m=0.0, lens_samples=1)
+    for t, expected in CHECK_TABLE[name].items():
+        sim, eye = check_simulator(t)
+        np.testing.assert_allclose(sim.geometry.pos[2, 4], 0.0, atol=1e-12)
+        value = sim.reflectance(screen, eye)[2, 4]
+        np.testing.assert_allclose(
+            value, math.pi * np.asarray(expected), rtol=0.01, err_msg=f"{name} at t = {t}"
+        )
+
+
+def test_material_screen_lens_blurs_the_peak_and_is_cached(materials_dir: Path) -> None:
+    sim, eye = check_simulator(0.0)
+    point = material_screen(materials_dir / "red-specular-plastic.npz", 0.0, 1)
+    lens = material_screen(materials_dir / "red-specular-plastic.npz")
+    assert (lens.lens_radius_m, lens.lens_samples) == (LENS_RADIUS_M, LENS_SAMPLES)
+    at_peak = sim.reflectance(lens, eye)[2, 4]
+    assert np.all(at_peak < 0.5 * sim.reflectance(point, eye)[2, 4])  # 0.86 deg vs a 1 deg spike
+    # the same eye (to 0.1 mm) is the same, read-only array; a bounded number is kept
+    again = sim.reflectance(lens, eye + 1e-6)
+    assert again is sim.reflectance(lens, eye)
+    assert not again.flags.writeable
+    for k in range(REFLECTANCE_CACHE + 3):
+        sim.reflectance(lens, eye + np.array([0.001 * (k + 1), 0.0, 0.0]))
+    assert len(lens._cache) == REFLECTANCE_CACHE
+    assert sim.reflectance(lens, eye) is not again  # evicted, computed again, equal
+    np.testing.assert_array_equal(sim.reflectance(lens, eye), again)
+
+
+def test_material_screen_radiance_and_true_model(materials_dir: Path) -> None:
+    sim = small_simulator(40, 20)
+    screen = material_screen(materials_dir / "bluebook.npz", lens_samples=4)
+    spectralon = material_screen(materials_dir / "spectralon.npz", lens_samples=4)
+    eye = sim.geometry.camera
+    img = np.full((20, 40, 3), 120, np.uint8)
+    refl = sim.reflectance(screen, eye)
+    # the ambient sees the diffuse albedo: light along the normal, seen 45 degrees off
+    diffuse = screen.material.reflectance(np.array([0.0, 0.0, 1.0]), in_plane(45.0))
+    np.testing.assert_allclose(screen.diffuse, diffuse, rtol=1e-12)
+    expected = refl * sim.light(img) + diffuse * np.asarray(sim.ambient)
+    np.testing.assert_allclose(sim.radiance(screen, img, eye), expected, rtol=1e-12)
+    # the oracle's model reproduces the radiance: M(x) f(I) + A(x)
+    m = sim.true_mixing(screen, eye, vignetting=False)
+    a = sim.true_ambient(screen, vignetting=False)
+    signal = np.einsum("hwij,hwj->hwi", m, sim.projector.response(img)) + a
+    np.testing.assert_allclose(signal, sim.observe_linear(screen, img, eye), rtol=1e-12)
+    # a glossy material's highlight stands far above its diffuse level; spectralon is flat white
+    assert np.all(refl.max(axis=(0, 1)) > 20 * diffuse)
+    white = sim.reflectance(spectralon, eye)
+    assert 0.9 < white.min() and white.max() < 1.05
+    with pytest.raises(SimulatorError, match="measured material"):
+        sim.lobe(screen, eye)
+
+
+def test_material_screen_refuses_bad_lens(materials_dir: Path) -> None:
+    with pytest.raises(SimulatorError, match="lens_radius_m"):
+        material_screen(materials_dir / "spectralon.npz", lens_radius_m=-1.0)
+    with pytest.raises(SimulatorError, match="lens_samples"):
+        material_screen(materials_dir / "spectralon.npz", lens_samples=0)
+    with pytest.raises(MaterialError, match="does not exist"):
+        material_screen(materials_dir / "no-such-material.npz")

@@ -13,7 +13,6 @@ from viewcomp.calib.fit.paper import (
     regress_rho,
     specular_map,
 )
-from viewcomp.calib.fit.pixel import fit_lobe
 from viewcomp.calib.model.reference import lut_forward, lut_inverse
 from viewcomp.calib.sim.simulator import simulation_rig
 from viewcomp.calib.world.eye import eye_from_angle
@@ -138,28 +137,6 @@ def test_specular_map_removes_vignetting():
     ratio = s90 / spec  # vignetting gone: S_90 is the lobe map up to one constant
     np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0, 0], ratio.shape), rtol=1e-9)
     np.testing.assert_allclose(n, (0.3 * spec * vignette).reshape(-1, 3).max(axis=0))
-
-
-def test_lobe_fit_recovers_baseline_kappa_gamma_under_noise():
-    g = _geometry()
-    rv = g.rv(g.camera)
-    b, kappa, gamma = np.array([0.8, 0.2, 0.15]), 0.35, 30.0
-    rng = np.random.default_rng(0)
-    s = b + kappa * rv[..., None] ** gamma + rng.normal(0, 0.005, (*rv.shape, 3))
-    lobe = fit_lobe(s, rv)
-    np.testing.assert_allclose(lobe.baseline, b, atol=0.01)
-    np.testing.assert_allclose(lobe.kappa, kappa, rtol=0.05)
-    assert abs(lobe.gamma - gamma) < 2.0
-    assert np.all(lobe.rms < 0.0075) and np.all(lobe.rms_power_law > 2 * lobe.rms)
-
-
-def test_lobe_fit_says_matte_when_there_is_no_lobe():
-    g = _geometry()
-    rv = g.rv(g.camera)
-    rng = np.random.default_rng(1)
-    s = np.full((*rv.shape, 3), 0.4) + rng.normal(0, 0.004, (*rv.shape, 3))
-    lobe = fit_lobe(s, rv)
-    assert np.all(lobe.kappa == 0) and "matte" in lobe.message
 
 
 def _brute_tone(u, v, c, lo, hi, lam, mu, scale):

@@ -160,7 +160,7 @@ def test_structure_of_a_fixed_angle_export(cal: Any, image: np.ndarray) -> None:
     assert names == [*(f"VC_MAP{k}" for k in range(8)), "VC_LUT"]
     tex = textures(text)
     assert all(tex[f"VC_MAP{k}"].shape == (H, W, 4) for k in range(8))
-    assert tex["VC_LUT"].shape == (2, 1024, 4)
+    assert tex["VC_LUT"].shape == (3, 1024, 4)
     header = text[: text.index("//!")]
     assert "grid 64x32" in header and "angle 60" in header
     for _, body in blocks:  # nothing inside a body that mpv would take for a directive

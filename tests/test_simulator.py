@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from viewcomp.calib.eval.testimages import uniform
-from viewcomp.calib.sim.simulator import SimulatorError, make_screen, white_screen
+from viewcomp.calib.sim.simulator import (
+    DLP_PROJECTOR,
+    PROJECTOR_PRESETS,
+    ProjectorPhysics,
+    SimulatorError,
+    make_screen,
+    white_screen,
+)
 from viewcomp.calib.sim.testing import small_simulator
 from viewcomp.calib.world.eye import eye_from_angle
 
@@ -102,3 +109,72 @@ def test_screens_and_gloss_presets():
         make_screen((1.5, 0.2, 0.2))
     with pytest.raises(SimulatorError, match="unknown gloss"):
         make_screen("red", "shiny")
+
+
+def test_reflectance_of_analytic_screens_is_albedo_plus_lobe(sim):
+    eye = eye_from_angle(70, 0.5, 0.035)
+    img = uniform((150, 90, 60), W, H)
+    for screen in (make_screen("magenta", "glossy"), make_screen("textured", "satin", (H, W))):
+        a = screen.albedo_map(sim.shape)
+        refl = a + sim.lobe(screen, eye)[..., None]
+        np.testing.assert_array_equal(sim.reflectance(screen, eye), refl)
+        np.testing.assert_array_equal(
+            sim.radiance(screen, img, eye), refl * sim.light(img) + a * np.asarray(sim.ambient)
+        )
+        scale = sim.camera.exposure * sim.falloff * sim.vignette
+        np.testing.assert_array_equal(
+            sim.true_mixing(screen, eye, vignetting=True),
+            (refl * scale[..., None])[..., :, None] * sim.projector.mixing,
+        )
+
+
+LEVELS = np.linspace(0.0, 255.0, 2041)[:, None] * np.ones(3)
+
+
+def test_dlp_response_leak_white_monotone_and_inverse():
+    dlp = ProjectorPhysics.dlp()
+    assert dlp is DLP_PROJECTOR and PROJECTOR_PRESETS["dlp"] is dlp
+    f = dlp.response(LEVELS)
+    np.testing.assert_allclose(f[0], [0.025, 0.030, 0.035], rtol=1e-12)
+    np.testing.assert_allclose(f[-1], 1.0, rtol=1e-12)
+    assert np.all(np.diff(f, axis=0) > 0)
+    np.testing.assert_allclose(dlp.response_inverse(f), LEVELS, atol=1e-9)
+    light = np.linspace(0.0, 1.0, 999)[:, None] * np.ones(3)
+    back = dlp.response(dlp.response_inverse(light))
+    np.testing.assert_allclose(back, np.maximum(light, f[0]), atol=1e-12)
+    # the leak broadcasts like the response: (3,) against (..., 3)
+    assert np.asarray(dlp.leak).shape == (3,)
+    assert np.all(dlp.response(LEVELS) >= dlp.leak)
+
+
+def test_dlp_response_has_a_kink_near_white_and_differs_per_channel():
+    dlp = DLP_PROJECTOR
+    assert len(set(dlp.gamma)) == 3 and len(set(dlp.kink)) == 3
+    for c, (k, s) in enumerate(zip(dlp.kink, dlp.kink_slope, strict=True)):
+        assert 0.85 <= k <= 0.9 and 0.4 <= s <= 0.6
+        eps = 1e-4
+        lv = 255.0 * np.array([[k - 2 * eps, k - eps, k + eps, k + 2 * eps]]).T * np.ones(3)
+        f = dlp.response(lv)[:, c]
+        below, above = (f[1] - f[0]) / eps, (f[3] - f[2]) / eps
+        np.testing.assert_allclose(above / below, s, rtol=1e-3)
+    # not a power law: the best power law misses the response by more than a level's worth
+    x = LEVELS[1:, 0] / 255.0
+    y = (dlp.response(LEVELS)[1:] - np.asarray(dlp.leak)) / (1 - np.asarray(dlp.leak))
+    for c in range(3):
+        g = np.polyfit(np.log(x[400:]), np.log(y[400:, c]), 1)[0]
+        assert np.max(np.abs(x**g - y[:, c])) > 0.02
+
+
+def test_default_projector_is_the_power_law_and_refuses_bad_kinks():
+    p = ProjectorPhysics()
+    x = LEVELS / 255.0
+    np.testing.assert_array_equal(
+        p.response(LEVELS), p.leak + (1.0 - p.leak) * x ** np.asarray(p.gamma)
+    )
+    np.testing.assert_allclose(p.response_inverse(p.response(LEVELS)), LEVELS, atol=1e-9)
+    with pytest.raises(SimulatorError, match="kink"):
+        ProjectorPhysics(kink=(0.9, 1.2, 0.9))
+    with pytest.raises(SimulatorError, match="kink_slope"):
+        ProjectorPhysics(kink=(0.9, 0.9, 0.9), kink_slope=(0.5, 0.0, 0.5))
+    with pytest.raises(SimulatorError, match="leak"):
+        ProjectorPhysics(leak=(0.1, 0.2))

@@ -63,12 +63,14 @@ def _known_errors() -> tuple[type[BaseException], ...]:
     from viewcomp.calib.errors import FitError
     from viewcomp.calib.io.bundle import BundleError
     from viewcomp.calib.io.imageio import CaptureError
+    from viewcomp.calib.sim.materials import MaterialError
     from viewcomp.calib.sim.simulator import SimulatorError
     from viewcomp.calib.world.geometry import GeometryError
     from viewcomp.calib.world.rig import RigError
 
     errors: list[type[BaseException]] = [
-        BundleError, FitError, GeometryError, CaptureError, RigError, SimulatorError,
+        BundleError, FitError, GeometryError, CaptureError, MaterialError, RigError,
+        SimulatorError,
     ]  # fmt: skip
     try:
         from viewcomp.rt.gl.context import GLUnavailable

@@ -32,7 +32,7 @@ from viewcomp.calib.comp.tonemap import (
 from viewcomp.calib.io.patterns import GRAY_LEVEL
 from viewcomp.calib.model.reference import (
     compensate,
-    screen_mixing_at,
+    screen_at,
     tone_terms,
     white_response,
 )
@@ -117,6 +117,7 @@ class Compensation:
     ) -> None:
         if method not in ("pixel", "paper"):
             raise ValueError(f"method must be 'pixel' or 'paper', got {method!r}")
+        cal.require(method)
         self.cal = cal
         self.method = method
         self.lam = float(lam)
@@ -127,7 +128,7 @@ class Compensation:
         self._small: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, RuntimeModel]] = {}
         self._paper: OrderedDict[tuple, RuntimeModel] = OrderedDict()
         self._gains: np.ndarray | None = None  # the paper's feedback, carried between frames
-        self._view: tuple[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._view: tuple[tuple, np.ndarray, np.ndarray] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -186,9 +187,9 @@ class Compensation:
         (grid, eye) asked for, so a held eye costs the inversion once."""
         key = (small.shape, tuple(np.asarray(eye, np.float64).tolist()))
         if self._view is None or self._view[0] != key:
-            m = screen_mixing_at(small, eye).astype(np.float64)
-            self._view = (key, np.linalg.inv(m))
-        return tone_terms(self._view[1], cw, small.Ac.astype(np.float64))
+            m, a = screen_at(small, eye)
+            self._view = (key, np.linalg.inv(m.astype(np.float64)), a.astype(np.float64))
+        return tone_terms(self._view[1], cw, self._view[2])
 
     def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye, the time (s)."""

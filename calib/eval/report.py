@@ -37,14 +37,14 @@ def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, A
     The samples are s = (L_c,U - A_c) / (L_w,U - A_w) over its maximum (gray captures,
     black captures removed), and both fits are made on these very samples.
     """
+    from viewcomp.calib.fit.lobe import fit_lobe
     from viewcomp.calib.fit.paper import fit_phong
-    from viewcomp.calib.fit.pixel import fit_lobe
     from viewcomp.calib.sim.simulate import capture_patterns
     from viewcomp.calib.sim.simulator import white_screen
 
     plt = _plt()
     case = world.case(screen)
-    g = case.cal.paper.geometry
+    g = case.cal.pixel.geometry
     rv = g.rv(g.camera)
 
     def lin(scr: Any) -> dict[str, np.ndarray]:
@@ -55,7 +55,7 @@ def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, A
     s = (c["gray"] - c["black"]) / np.maximum(w["gray"] - w["black"], 1e-6)
     top = s.reshape(-1, 3).max(axis=0)
     power = fit_phong(s / top, rv, "all")
-    lobe = fit_lobe(s, rv)
+    lobe = fit_lobe(s, g)
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     sel = (slice(None, None, 4), slice(None, None, 4))
     ok = rv[sel] > 0
@@ -66,9 +66,10 @@ def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, A
         ax.plot(x, y, ".", ms=1, alpha=0.3, color="0.4", label="s samples")
         ax.plot(xs, np.log(power.ksis[ch]) + power.gamma[ch] * xs, "r-",
                 label=f"paper: power law (gamma {power.gamma[ch]:.1f})")  # fmt: skip
-        yl = lobe.baseline[ch] + lobe.kappa[ch] * np.exp(lobe.gamma * xs)
-        ax.plot(xs, np.log(yl / top[ch]), "b-",
-                label=f"baseline + lobe (gamma {lobe.gamma:.1f})")  # fmt: skip
+        yl = lobe.baseline[ch] + lobe.at(g, g.camera)[sel][ok][:, ch]
+        order = np.argsort(x)
+        ax.plot(x[order], np.log(np.maximum(yl[order], 1e-9) / top[ch]), "b-",
+                label=f"baseline + tabulated lobe ({lobe.param} angle)")  # fmt: skip
         ax.set_title(f"{screen} screen, channel {'RGB'[ch]}")
         ax.set_xlabel("log R.V")
         ax.legend(loc="lower right", fontsize=7)
@@ -82,8 +83,10 @@ def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, A
         "power_law_rms_log": power.rms.tolist(),
         "power_law_rms": lobe.rms_power_law.tolist(),
         "lobe_rms": lobe.rms.tolist(),
-        "lobe_gamma": lobe.gamma,
-        "lobe_kappa": lobe.kappa.tolist(),
+        "lobe_param": lobe.param,
+        "lobe_rms_other_param": lobe.rms_other.tolist(),
+        "phong_rms": [float(v) for v in lobe.rms_phong],
+        "lobe_peak": lobe.peak.tolist(),
         "lobe_baseline": lobe.baseline.tolist(),
         "true_kappa_gamma": [case.screen.k_s / 0.85, case.screen.shininess],
         "note": "rms in units of s (both fits on the same samples); rms_log in log units",

@@ -293,6 +293,9 @@ class PaperCalibration:
 
     Means are (3,) linear; ``ramp_cols`` are per-column means of the real screen's ramp at 90
     (W, 3); ``n`` (3,) is Eq. 3's constant; ``fit`` the Phong fit; ``rho_w`` (256, 3).
+    ``stat_mask`` (H, W) bool: the pixels the image-wide statistics (means, ramp columns,
+    Eq. 10's change) are taken over (None: all), so that a highlight covering a few percent of
+    the image, or clipped pixels, do not decide them.
     """
 
     geometry: ScreenGeometry
@@ -303,6 +306,7 @@ class PaperCalibration:
     w_tilde_w: np.ndarray
     rho_w: np.ndarray
     rv90: np.ndarray
+    stat_mask: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def delta_s(self, eye: np.ndarray, gain: np.ndarray) -> np.ndarray:
@@ -320,7 +324,7 @@ class PaperCalibration:
         hit = self._cache.get(key)
         if hit is None:
             d = self.fit.predict(self.geometry.rv(eye)) - self.fit.predict(self.rv90)
-            hit = (d.mean(axis=0), d.reshape(-1, 3).mean(axis=0))
+            hit = (masked_column_means(d, self.stat_mask), masked_mean(d, self.stat_mask))
             self._cache[key] = hit
             if len(self._cache) > 256:
                 self._cache.pop(next(iter(self._cache)))
@@ -364,6 +368,7 @@ def calibrate_paper(
     screen: dict[str, np.ndarray],
     geometry: ScreenGeometry,
     fit_mode: str = "all",
+    stat_mask: np.ndarray | None = None,
 ) -> PaperCalibration:
     """Steps 1, 2 and 4 of the paper on linearised captures (the rest happens per eye).
 
@@ -371,23 +376,49 @@ def calibrate_paper(
         white, screen: pattern name -> (H, W, 3) linear captures on the projector grid.
         geometry: the rig's per-pixel geometry (same grid).
         fit_mode: "all" (Eq. 8) or "row" (Eq. 7).
+        stat_mask: (H, W) bool, the pixels the pattern means and the ramp's columns are taken
+            over (None: all); see :class:`PaperCalibration`.
     """
     rv90 = geometry.rv(geometry.camera)
     s90, n = specular_map(screen["gray"], white["gray"])
     fit = fit_phong(s90, rv90, fit_mode, camera_row(geometry))
-    means_w = {k: white[k].reshape(-1, 3).mean(axis=0) for k in (*CHANNEL_PATTERNS, "gray")}
+    names = (*CHANNEL_PATTERNS, "gray")
+    means_w = {k: masked_mean(white[k], stat_mask) for k in names}
     w_tilde_w = mixing_from_means(means_w)
-    rho_w = decoupled_ramp_lut(white["ramp"].mean(axis=0), w_tilde_w, "white/ramp")
-    means_c = {k: screen[k].reshape(-1, 3).mean(axis=0) for k in (*CHANNEL_PATTERNS, "gray")}
+    rho_w = decoupled_ramp_lut(
+        masked_column_means(white["ramp"], stat_mask), w_tilde_w, "white/ramp"
+    )
+    means_c = {k: masked_mean(screen[k], stat_mask) for k in names}
+    ramp_c = masked_column_means(screen["ramp"], stat_mask)
     # The captured ramp itself must make a response curve (checked here, strictly).
-    decoupled_ramp_lut(screen["ramp"].mean(axis=0), mixing_from_means(means_c), "screen/ramp")
+    decoupled_ramp_lut(ramp_c, mixing_from_means(means_c), "screen/ramp")
     return PaperCalibration(
         geometry=geometry,
         n=n,
         fit=fit,
         means_c=means_c,
-        ramp_cols_c=screen["ramp"].mean(axis=0),
+        ramp_cols_c=ramp_c,
         w_tilde_w=w_tilde_w,
         rho_w=rho_w,
         rv90=rv90,
+        stat_mask=stat_mask,
     )
+
+
+def masked_mean(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """Mean (3,) of an (H, W, 3) image over the pixels where ``mask`` (H, W) is True (all
+    pixels for None)."""
+    if mask is None:
+        return image.reshape(-1, 3).mean(axis=0)
+    return image[mask].mean(axis=0)
+
+
+def masked_column_means(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """Per-column means (W, 3) of an (H, W, 3) image over the rows where ``mask`` is True; a
+    column with no such row takes the mean of its whole column."""
+    if mask is None:
+        return image.mean(axis=0)
+    m = mask[..., None].astype(image.dtype)
+    count = m.sum(axis=0)
+    masked = (image * m).sum(axis=0) / np.maximum(count, 1)
+    return np.where(count > 0, masked, image.mean(axis=0))

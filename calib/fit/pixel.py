@@ -10,12 +10,14 @@ normalised to f(0) = 0, f(255) = 1), W~(x) the colour mixing from per-pixel diff
 the red/green/blue patterns against gray (smoothed), D(x) the per-pixel gain from the gray
 pattern, A(x) the black capture (or an estimate without one).
 
-The specular lobe is fitted as a diffuse baseline plus a lobe relative to the white screen,
-s(x) = (L_c,U - A_c) / (L_w,U - A_w) = b + kappa (R.V)^gamma, by non-linear least squares;
-its change with the eye scales with each pixel's own projected light:
+The specular lobe is fitted as a diffuse baseline plus a tabulated lobe relative to the white
+screen, s(x) = (L_c,U - A_c) / (L_w,U - A_w) = b + lobe(t(x)) (:mod:`viewcomp.calib.fit.lobe`);
+its change with the eye scales with each pixel's own projected light, and with the share
+lambda of the black level that is projector light (its black leak, measured from the black
+capture's highlight; :func:`~viewcomp.calib.fit.lobe.black_lobe_share`):
 
-    L_c(x; I, eye) = L_c(x; I, cam) + diag(ds(x)) W_w(x) f(I),
-    ds(x) = kappa ((R.V_eye)^gamma - (R.V_cam)^gamma)
+    L_c(x; I, eye) = L_c(x; I, cam) + diag(ds(x)) (W_w(x) f(I) + lambda A_w(x)),
+    ds(x) = lobe(t_eye(x)) - lobe(t_cam(x))
 
 so the compensation at any eye is one per-pixel linear solve (docs/RUNTIME.md): the fixed
 point of the feedback I <- F_c^-1(T - ds F_w(I)) reached exactly, since F_c and F_w share f.
@@ -23,17 +25,18 @@ point of the feedback I <- F_c^-1(T - ds F_w(I)) reached exactly, since F_c and 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
-from scipy.optimize import least_squares
 
 from viewcomp.calib.errors import FitError
+from viewcomp.calib.fit.lobe import LobeFit, black_lobe_share, fit_lobe
 from viewcomp.calib.fit.paper import (
     CHANNEL_PATTERNS,
     inverse_lut,
     level_means,
+    mixing_from_means,
     monotone_lut,
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
@@ -52,27 +55,6 @@ class ScreenModel:
     ambient_measured: bool
 
 
-@dataclass(frozen=True)
-class LobeFit:
-    """s = b + kappa (R.V)^gamma per channel, with its residual, and the pure power law's.
-
-    ``rms``: RMS residual of this fit (units of s); ``rms_power_law``: RMS residual of the
-    paper's log s = a + gamma log(R.V) fitted to the same samples, in the same units.
-    """
-
-    baseline: np.ndarray  # (3,)
-    kappa: np.ndarray  # (3,)
-    gamma: float
-    rms: np.ndarray  # (3,)
-    rms_power_law: np.ndarray  # (3,)
-    samples: int
-    message: str
-
-    def sigma(self, rv: np.ndarray) -> np.ndarray:
-        """The lobe kappa max(R.V, 0)^gamma: (H, W) -> (H, W, 3)."""
-        return self.kappa * np.maximum(rv, 0.0)[..., None] ** self.gamma
-
-
 @dataclass
 class PixelCalibration:
     """Everything the per-pixel method needs: f, both screens' models, the lobe, geometry."""
@@ -83,6 +65,7 @@ class PixelCalibration:
     screen: ScreenModel
     lobe: LobeFit
     response_rms: float
+    black_share: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def runtime_model(self) -> RuntimeModel:
         """The per-pixel runtime model (docs/RUNTIME.md); the eye is a per-frame uniform."""
@@ -101,8 +84,9 @@ class PixelCalibration:
             Aw=self.white.A.astype(f32),
             Wc=self.screen.W.astype(f32),
             Ac=self.screen.A.astype(f32),
-            kappa=self.lobe.kappa.astype(f32),
-            gamma=float(self.lobe.gamma),
+            lobe=self.lobe.table.astype(f32),
+            lobe_half=self.lobe.half,
+            lobe_black=self.black_share.astype(f32),
         )
 
 
@@ -119,6 +103,14 @@ def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndar
         FitError: a colour pattern is not brighter than gray in its own channel somewhere.
     """
     h, w, _ = caps["gray"].shape
+    # The image means must show each pattern raising its own channel most (the paper's order
+    # check, Eq. 16): otherwise the captures are swapped.
+    try:
+        mixing_from_means(
+            {k: caps[k].reshape(-1, 3).mean(axis=0) for k in (*CHANNEL_PATTERNS, "gray")}
+        )
+    except FitError as exc:
+        raise FitError(f"{sub}/{exc.capture}", exc.reason) from None
     wt = np.empty((h, w, 3, 3))
     for j, name in enumerate(CHANNEL_PATTERNS):
         d = _smooth(caps[name] - caps["gray"], sigma)
@@ -191,63 +183,13 @@ def screen_model(
     return ScreenModel(W=wt * d[..., None, :], A=amb, ambient_measured=measured)
 
 
-def fit_lobe(s: np.ndarray, rv: np.ndarray, step: int = 2) -> LobeFit:
-    """Fit s = b + kappa (R.V)^gamma (b, kappa per channel, one gamma) by least squares.
-
-    Args:
-        s: (H, W, 3) specular ratio of the real to the white screen (ambient removed).
-        rv: (H, W) R.V toward the calibration camera.
-        step: subsampling of the pixels used.
-
-    Returns:
-        LobeFit; ``kappa = 0`` and a message when the screen shows no lobe (matte).
-    """
-    ok = rv[::step, ::step] > 0
-    x = np.maximum(rv[::step, ::step][ok], 1e-9)
-    y = s[::step, ::step][ok]
-    if x.size < 20:
-        raise FitError("screen/gray", "too few pixels with R.V > 0 to fit the specular lobe")
-    lx = np.log(x)
-
-    def model(p: np.ndarray) -> np.ndarray:
-        return p[0:3] + p[3:6] * np.exp(p[6] * lx)[:, None]
-
-    def resid(p: np.ndarray) -> np.ndarray:
-        return (model(p) - y).ravel()
-
-    b0 = np.percentile(y, 5, axis=0)
-    k0 = np.maximum(np.percentile(y, 99.5, axis=0) - b0, 1e-3)
-    best = None
-    for g0 in (5.0, 20.0, 80.0):
-        p0 = np.concatenate([b0, k0, [g0]])
-        r = least_squares(
-            resid, p0, bounds=([0] * 6 + [0.5], [np.inf] * 6 + [5000.0]), x_scale="jac"
-        )
-        if best is None or r.cost < best.cost:
-            best = r
-    p = best.x
-    rms = np.sqrt(np.mean((model(p) - y) ** 2, axis=0))
-    # The paper's pure power law on the same samples, for comparison (rms in units of s).
-    design = np.stack([np.ones_like(lx), lx], axis=1)
-    pl = np.empty(3)
-    for ch in range(3):
-        coef, *_ = np.linalg.lstsq(design, np.log(np.maximum(y[:, ch], 1e-9)), rcond=None)
-        pl[ch] = np.sqrt(np.mean((np.exp(design @ coef) - y[:, ch]) ** 2))
-    kappa, gamma = p[3:6], float(p[6])
-    noise = np.std(y - model(p), axis=0)
-    message = "baseline + lobe fitted"
-    if np.all(kappa < 2 * noise + 1e-3):
-        kappa = np.zeros(3)
-        gamma = 1.0
-        message = "no specular lobe above the noise: treated as matte"
-    return LobeFit(p[0:3], kappa, gamma, rms, pl, int(x.size), message)
-
-
 def calibrate_pixel(
     white: dict[str, np.ndarray],
     screen: dict[str, np.ndarray],
     geometry: ScreenGeometry,
     smooth_px: float = DEFAULT_SMOOTH_PX,
+    valid: np.ndarray | None = None,
+    lobe_param: str | None = None,
 ) -> PixelCalibration:
     """Build the per-pixel calibration from linearised captures on the projector grid.
 
@@ -256,6 +198,8 @@ def calibrate_pixel(
             or in neither).
         geometry: the rig's per-pixel geometry on the same grid.
         smooth_px: Gaussian sigma (projector pixels) for the colour-mixing ratios and ambient.
+        valid: (H, W) bool, pixels the lobe fit may use (False: clipped in some capture).
+        lobe_param: force the lobe's parametrisation ("half" or "mirror"); None: the better.
     """
     wt_w = mixing_tilde(white, smooth_px, "white")
     amb_w, _ = _estimate_ambient(white, smooth_px)
@@ -263,5 +207,10 @@ def calibrate_pixel(
     wm = screen_model(white, f_lut, smooth_px, "white")
     cm = screen_model(screen, f_lut, smooth_px, "screen")
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
-    lobe = fit_lobe(s, geometry.rv(geometry.camera))
-    return PixelCalibration(geometry, f_lut, wm, cm, lobe, misfit)
+    lobe = fit_lobe(s, geometry, valid, lobe_param)
+    share = np.zeros(3)
+    if "black" in screen and "black" in white:
+        ratio = cm.A / np.maximum(wm.A, 1e-6)
+        ok = np.ones(s.shape[:2], bool) if valid is None else valid
+        share = black_lobe_share(ratio, lobe.at(geometry, geometry.camera), lobe.baseline, ok)
+    return PixelCalibration(geometry, f_lut, wm, cm, lobe, misfit, share)

@@ -223,14 +223,21 @@ def rectify_capture_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, Any]]:
     white, screen = Captures(cs, "white"), Captures(cs, "screen")
     rect: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     fractions: dict[tuple[str, str], float] = {}
+    clipped: dict[tuple[str, str], np.ndarray] = {}
     for caps in (white, screen):
         for n in (*REQUIRED, *OPTIONAL):
             if n not in caps.memory:
                 continue
             img = caps.get(n)
             rect[caps.sub][n] = fill_border(rectify(img, maps), BORDER_PX)
-            top = (img >= 1.0).astype(np.float32)
-            fractions[(caps.sub, n)] = float(rectify(top, maps).round().mean())
+            # Codes at the top decode to 1.0; a float (HDR) capture, whose raw saturation is 0,
+            # holds light above 1 unclipped.
+            if caps.saturation.get(n, 0.0) > 0:
+                top = rectify((img >= 1.0).astype(np.float32), maps).round()
+                fractions[(caps.sub, n)] = float(top.mean())
+                clipped[(caps.sub, n)] = np.any(top > 0, axis=-1) if top.ndim == 3 else top > 0
+            else:
+                fractions[(caps.sub, n)] = 0.0
         check_pattern_order(rect[caps.sub], caps.sub)
     stats["seconds"] = round(time.perf_counter() - t0, 2)
     out = CaptureSet(
@@ -240,5 +247,6 @@ def rectify_capture_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, Any]]:
         raw_max_fraction=fractions,
         path=cs.path,
         extra={},
+        clipped=clipped,
     )
     return out, stats

@@ -6,7 +6,8 @@ with the runtime):
 - :class:`OpenCVCamera`: an OpenCV ``VideoCapture`` device, exposure, white balance and focus
   locked where the driver allows (what it refuses is reported, not hidden), frames averaged.
 - :class:`SimulatedRig`: both sides over the simulator (:mod:`viewcomp.calib.sim.simcamera`), so
-  the capture procedure runs the same code path without hardware, in tests and demos.
+  the capture procedure runs the same code path without hardware, in tests and demos; its
+  exposure is a linear gain that can be set (HDR brackets).
 
 Images crossing this interface are numpy RGB, row 0 at the top: the projector takes
 (H, W, 3) uint8 at its resolution; the camera returns (Hc, Wc, 3) uint8, or uint16 when it
@@ -63,6 +64,15 @@ class Camera(Protocol):
 
     def grab(self, n_frames: int) -> np.ndarray:
         """The mean of ``n_frames`` fresh frames: (Hc, Wc, 3) uint8 or uint16 RGB."""
+        ...
+
+    def get_exposure(self) -> float:
+        """The exposure the camera reports, in its driver's units."""
+        ...
+
+    def set_exposure(self, value: float) -> float:
+        """Set the exposure (driver's units) and return what the camera then reports; raises
+        :class:`DeviceError` when the camera does not let it be set."""
         ...
 
     def close(self) -> None:
@@ -165,6 +175,24 @@ class OpenCVCamera:
             problems.append("autofocus could not be switched off (fine for fixed-focus cameras)")
         return problems
 
+    def get_exposure(self) -> float:
+        """CAP_PROP_EXPOSURE as the driver reports it (V4L2: units of 100 us; DirectShow and
+        MSMF: log2 of seconds, <= 0)."""
+        return float(self._cap.get(self._cv2.CAP_PROP_EXPOSURE))
+
+    def set_exposure(self, value: float) -> float:
+        """Set CAP_PROP_EXPOSURE, drop ``flush`` frames taken before it applied, and return
+        what the driver then reports (drivers round to their own steps and range)."""
+        if not self._cap.set(self._cv2.CAP_PROP_EXPOSURE, float(value)):
+            raise DeviceError(
+                f"camera {self.index}: the driver refuses to set the exposure (CAP_PROP_EXPOSURE "
+                f"= {value:g}): --hdr needs a camera whose exposure OpenCV can set; capture "
+                "without --hdr (at an exposure where nothing clips), or use another camera"
+            )
+        for _ in range(self.flush):
+            self._read()
+        return self.get_exposure()
+
     def _read(self) -> np.ndarray:
         ok, frame = self._cap.read()
         if not ok or frame is None:
@@ -227,6 +255,9 @@ class SimulatedRig:
         self._grabs = 0
         self._move: tuple[int, tuple[float, float, float]] | None = None
         self._noise_sims: dict[int, Simulator] = {}
+        #: The camera's exposure now (a linear gain; starts at the simulator's): what
+        #: ``camera.set_exposure`` sets.
+        self.exposure = float(sim.camera.exposure)
         self.projector = _SimProjector(self)
         self.camera = _SimCamera(self)
 
@@ -261,7 +292,7 @@ class SimulatedRig:
         self._grabs += 1
         screen = self.screens[self._screen_name]
         image = self._image if self.projector_visible else np.zeros_like(self._image)
-        lin = self._cam.linear(screen, image)
+        lin = self._cam.linear(screen, image) * np.float32(self.exposure / self.sim.camera.exposure)
         noisy = self._noise_sim(n_frames).noise(lin, f"{self._screen_name}/grab{self._grabs}")
         return self.sim.quantise(noisy)
 
@@ -314,6 +345,15 @@ class _SimCamera:
         if n_frames < 1:
             raise ValueError(f"n_frames must be >= 1, got {n_frames}")
         return self._rig._grab(n_frames)
+
+    def get_exposure(self) -> float:
+        return self._rig.exposure
+
+    def set_exposure(self, value: float) -> float:
+        if not (np.isfinite(value) and value > 0):
+            raise DeviceError(f"the simulated camera's exposure is a gain > 0, got {value}")
+        self._rig.exposure = float(value)
+        return self._rig.exposure
 
     def close(self) -> None:
         return None

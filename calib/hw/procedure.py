@@ -22,12 +22,18 @@ through the geometric calibration that `viewcomp calibrate` will run
 a set that is written calibrates. A refused capture raises
 :class:`~viewcomp.calib.io.imageio.CaptureError` (or ``FitError``) and nothing is written.
 
+With an HDR bracket (``hdr_stops``, `capture --hdr`), each capture is the camera's frames at
+every relative exposure (:class:`Bracket`), merged into float32 linear light as it is taken;
+"saturated" then means clipped even in the shortest exposure, and the set is written as
+``.npy``.
+
 Prompts go through a callable ``prompt(stage, message) -> bool`` (False: stop), so tests
 and unattended runs (``--yes``) answer them.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -37,10 +43,11 @@ import numpy as np
 
 from viewcomp.calib.geo.checks import MIN_PEAK, MOVE_LIMIT_PX, frame_shift
 from viewcomp.calib.geo.chessboard import find_corners
-from viewcomp.calib.hw.devices import Camera, Projector
+from viewcomp.calib.hw.devices import Camera, DeviceError, Projector
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import DARK_LIMIT, SATURATION_LIMIT, check_captures
+from viewcomp.calib.io.hdr import check_stops, merge_exposures
 from viewcomp.calib.io.imageio import CaptureError, to_linear
 from viewcomp.calib.io.patterns import table1_patterns
 from viewcomp.calib.sim.simcamera import geometric_patterns
@@ -145,22 +152,43 @@ class LiveChecks:
         """(H, W, 3) codes -> float32 linear 0..1."""
         return to_linear(raw, self.response)
 
+    def _clipped_fraction(self, sub: str, at_top: np.ndarray) -> float:
+        """Fraction of the lit pixels (all before ``sub``'s gray) with a channel at the top:
+        ``at_top`` (H, W, 3) bool."""
+        mask = self.lit.get(sub)
+        hit = np.any(at_top, axis=2) if mask is None else at_top[mask]
+        return float(np.count_nonzero(hit)) / max(hit.size, 1)
+
     def check(self, sub: str, name: str, raw: np.ndarray) -> None:
         """Check one capture; raises CaptureError naming it and the fix."""
         rel = f"{sub}/{name}"
         if raw.ndim != 3 or raw.shape[2] != 3 or raw.dtype not in (np.uint8, np.uint16):
             raise CaptureError(f"{rel}: the camera returned {raw.shape} {raw.dtype}, not RGB")
         top = 255 if raw.dtype == np.uint8 else 65535
-        mask = self.lit.get(sub)
-        at_top = np.any(raw >= top, axis=2) if mask is None else (raw >= top)[mask]
-        frac = float(np.count_nonzero(at_top)) / max(at_top.size, 1)
+        frac = self._clipped_fraction(sub, raw >= top)
         if frac > SATURATION_LIMIT:
             raise CaptureError(
                 f"{rel}: {frac:.1%} of the lit pixels are at the maximum code (saturated): "
-                "lower the camera's exposure (--exposure) or the projector's brightness, and "
-                "capture again"
+                "lower the camera's exposure (--exposure) or the projector's brightness, or "
+                "capture with --hdr, and capture again"
             )
-        lin = self.linear(raw)
+        self.check_linear(sub, name, self.linear(raw))
+
+    def check_merged(self, sub: str, name: str, lin: np.ndarray, clipped: np.ndarray) -> None:
+        """Check one HDR capture: ``lin`` (H, W, 3) float32 merged linear light, ``clipped``
+        (H, W, 3) bool the pixel-channels clipped in every frame of the bracket."""
+        rel = f"{sub}/{name}"
+        frac = self._clipped_fraction(sub, clipped)
+        if frac > SATURATION_LIMIT:
+            raise CaptureError(
+                f"{rel}: {frac:.1%} of the lit pixels are clipped even in the bracket's shortest "
+                "exposure: lower the camera's exposure (--exposure) and capture again"
+            )
+        self.check_linear(sub, name, lin)
+
+    def check_linear(self, sub: str, name: str, lin: np.ndarray) -> None:
+        """The checks of :meth:`check` after saturation, on the linear capture (H, W, 3)."""
+        rel = f"{sub}/{name}"
         if name == "black":
             self.black[sub] = lin
             return
@@ -241,6 +269,74 @@ class LiveChecks:
             )
 
 
+def relative_exposure(base: float, value: float) -> float:
+    """An exposure ``value`` relative to ``base``, both in the driver's units: linear (V4L2's
+    100 us steps, the simulated camera's gain) when ``base`` > 0; log2 of seconds (DirectShow,
+    MSMF: -13 .. 0) when ``base`` <= 0."""
+    return value / base if base > 0 else 2.0 ** (value - base)
+
+
+def exposure_value(base: float, relative: float) -> float:
+    """The driver value that is ``relative`` times ``base`` (the inverse of
+    :func:`relative_exposure`)."""
+    return base * relative if base > 0 else base + math.log2(relative)
+
+
+class Bracket:
+    """HDR captures: each one the camera's frames at every relative exposure of ``stops``
+    (set through :meth:`Camera.set_exposure`, read back as the camera reports it), merged
+    by :func:`~viewcomp.calib.io.hdr.merge_exposures` into float32 linear light in units of
+    the camera's exposure when the bracket starts (its base, restored after each capture).
+
+    Raises (at construction or :meth:`grab`): DeviceError when the camera's exposure cannot
+    be set or does not change.
+    """
+
+    def __init__(
+        self, camera: Camera, stops: tuple[float, ...], response: Response, log: Log
+    ) -> None:
+        self.camera = camera
+        self.stops = check_stops(stops)
+        self.response = response
+        self.log = log
+        self.base = camera.get_exposure()
+        self.reported: tuple[float, ...] | None = None
+
+    def grab(self, frames: int) -> tuple[np.ndarray, np.ndarray]:
+        """One merged capture: ((H, W, 3) float32 linear, (H, W, 3) bool clipped in every
+        frame). Frames whose read-back exposure repeats an earlier one are dropped (a driver
+        at the end of its range)."""
+        raws: list[np.ndarray] = []
+        rels: list[float] = []
+        try:
+            for s in self.stops:
+                got = relative_exposure(
+                    self.base, self.camera.set_exposure(exposure_value(self.base, s))
+                )
+                if not (math.isfinite(got) and got > 0) or any(
+                    abs(got - r) <= 1e-6 * r for r in rels
+                ):
+                    continue
+                raws.append(self.camera.grab(frames))
+                rels.append(got)
+        finally:
+            self.camera.set_exposure(self.base)
+        if len(rels) < 2:
+            raise DeviceError(
+                f"the camera does not change its exposure (asked for {len(self.stops)} relative "
+                f"exposures from {self.base:g}, it reports the same): --hdr needs a camera whose "
+                "exposure can be set; capture without --hdr"
+            )
+        if self.reported is None:
+            self.reported = tuple(rels)
+            self.log(
+                "HDR bracket: relative exposures "
+                + ", ".join(f"1/{1 / r:.4g}" if r < 1 else f"{r:.4g}" for r in rels)
+                + f" of {self.base:g} (as the camera reports them)"
+            )
+        return merge_exposures(raws, rels, self.response)
+
+
 NO_TERMINAL = (
     "capture asks you to put each screen up and confirm, and standard input {why}: run it "
     "in a terminal, or pass --yes for an unattended run; nothing was written"
@@ -273,6 +369,7 @@ def run_capture(
     settle: float = 0.5,
     sleep: Callable[[float], None] = time.sleep,
     response: str | float | None = None,
+    hdr_stops: tuple[float, ...] | None = None,
 ) -> list[Path]:
     """Capture a camera-space set into ``out_dir`` (see the module doc); returns the files.
 
@@ -289,6 +386,10 @@ def run_capture(
         response: the camera's response to write: None keeps the template's (sRGB without
             one), ``"estimate"`` estimates it from the Gray-code captures (light adds up:
             :func:`viewcomp.calib.geo.camresponse.estimate_response`), otherwise a rig.toml value.
+        hdr_stops: None for one exposure per capture (encoded codes, written as PNG); or the
+            relative exposures of an HDR bracket (:class:`Bracket`): every capture is taken at
+            each and merged, written as float32 linear ``.npy``. Needs a known response (not
+            ``"estimate"``) and a camera whose exposure can be set.
 
     Raises:
         CaptureError: a capture is refused (the message names it and the fix), the user
@@ -302,6 +403,12 @@ def run_capture(
         raise ValueError(f"frames must be >= 1, got {frames}")
     if settle < 0:
         raise ValueError(f"settle must be >= 0 seconds, got {settle}")
+    if hdr_stops is not None and response == "estimate":
+        raise CaptureError(
+            "--hdr needs the camera's response to merge the bracket: give --response "
+            "(srgb, linear or a gamma) or a --rig with one; estimating it from the Gray code "
+            "needs 8-bit captures"
+        )
     out = Path(out_dir)
     _check_writable(out)
     rig, incomplete = capture_rig(rig_template, projector.resolution, camera.resolution)
@@ -312,23 +419,37 @@ def run_capture(
     for p in problems:
         log(f"warning: {p}")
     checks = LiveChecks(rig.camera.response_curve(), (w, h))
+    bracket = (
+        None if hdr_stops is None else Bracket(camera, hdr_stops, rig.camera.response_curve(), log)
+    )
+
+    def take() -> tuple[np.ndarray, np.ndarray | None]:
+        """One capture: (encoded codes, None), or with a bracket (merged float32 linear,
+        pixel-channels clipped in every frame)."""
+        if bracket is None:
+            return camera.grab(frames), None
+        return bracket.grab(frames)
+
     captured: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     plan = capture_plan(w, h)
     stage = ""
     for i, step in enumerate(plan):
         if step.sub != stage:
             if stage:
-                _end_of_stage(stage, projector, camera, checks, frames, settle, sleep, plan)
+                _end_of_stage(stage, projector, checks, take, settle, sleep, plan)
             stage = step.sub
             if not prompt(stage, STAGE_MESSAGES[stage]):
                 raise CaptureError("capture stopped by the user; nothing was written")
         projector.show(step.pattern)
         sleep(settle)
-        raw = camera.grab(frames)
-        checks.check(step.sub, step.name, raw)
-        captured[step.sub][step.name] = raw
+        image, clipped = take()
+        if clipped is None:
+            checks.check(step.sub, step.name, image)
+        else:
+            checks.check_merged(step.sub, step.name, image, clipped)
+        captured[step.sub][step.name] = image
         log(f"{step.sub}/{step.name} ({i + 1}/{len(plan)})")
-    _end_of_stage(stage, projector, camera, checks, frames, settle, sleep, plan)
+    _end_of_stage(stage, projector, checks, take, settle, sleep, plan)
     projector.show(np.zeros((h, w, 3), np.uint8))
 
     cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
@@ -356,16 +477,17 @@ def run_capture(
 def _end_of_stage(
     stage: str,
     projector: Projector,
-    camera: Camera,
     checks: LiveChecks,
-    frames: int,
+    take: Callable[[], tuple[np.ndarray, np.ndarray | None]],
     settle: float,
     sleep: Callable[[float], None],
     plan: list[Step],
 ) -> None:
-    """Capture gray again and compare it with the stage's first gray (not written)."""
+    """Capture gray again (``take``: codes and None, or merged linear and its clipped mask)
+    and compare it with the stage's first gray (not written)."""
     gray = next(s.pattern for s in plan if s.name == "gray")
     projector.show(gray)
     sleep(settle)
-    raw = camera.grab(frames)
-    checks.moved(stage, f"{stage}/gray (again, at the end)", checks.linear(raw))
+    image, clipped = take()
+    lin = checks.linear(image) if clipped is None else image
+    checks.moved(stage, f"{stage}/gray (again, at the end)", lin)

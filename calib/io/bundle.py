@@ -2,7 +2,7 @@
 
 Layout (a plain zip, inspectable with any unzip tool)::
 
-    meta.json        {"format": "viewcomp-bundle", "schema": 1,
+    meta.json        {"format": "viewcomp-bundle", "schema": 2,
                       "arrays": {name: {"dtype": "<f4", "shape": [h, w, 3]}, ...},
                       "meta": {...the caller's meta...}}
     <name>.npy       one per array, numpy's .npy format (np.lib.format, no pickle)
@@ -27,7 +27,7 @@ import numpy as np
 
 from viewcomp.calib.io.atomic import atomic_open
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 FORMAT = "viewcomp-bundle"
 META_MEMBER = "meta.json"
 

@@ -25,6 +25,7 @@ from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.imageio import (
     IMAGE_SUFFIXES,
     CaptureError,
+    clipped_mask,
     max_code_fraction,
     read_image,
     to_linear,
@@ -59,6 +60,16 @@ class CaptureSet:
     raw_max_fraction: dict[tuple[str, str], float]
     path: Path
     extra: dict[str, list[Path]] = field(default_factory=dict)
+    clipped: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
+
+    def clipped_pixels(self) -> np.ndarray:
+        """(H, W) bool: pixels clipped (a channel at the top code) in any loaded capture."""
+        h, w = self.white["gray"].shape[:2]
+        out = np.zeros((h, w), bool)
+        for mask in self.clipped.values():
+            if mask.shape == out.shape:
+                out |= mask
+        return out
 
     @property
     def has_black(self) -> bool:
@@ -79,7 +90,7 @@ class CaptureSet:
 
     def saturated(self, sub: str, name: str) -> float:
         """Fraction 0..1 of the pixel-channels of ``sub/name`` at the maximum code (255 for
-        8-bit, 65535 for 16-bit, >= 1.0 for linear ``.npy``)."""
+        8-bit, 65535 for 16-bit; 0 for linear ``.npy``, whose values above 1 are HDR light)."""
         key = (sub, name)
         if key not in self.raw_max_fraction:
             raise KeyError(f"no capture {sub}/{name} in {self.path}")
@@ -182,6 +193,7 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
     response = rig.camera.response_curve()
     loaded: dict[str, dict[str, np.ndarray]] = {sub: {} for sub in SUBS}
     fractions: dict[tuple[str, str], float] = {}
+    clipped: dict[tuple[str, str], np.ndarray] = {}
     first: tuple[str, int, int] | None = None
     for (sub, name), p in files.items():
         rel = f"{sub}/{p.name}"
@@ -191,6 +203,7 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
             raise CaptureError(f"{exc} (capture {rel} in {root})") from None
         first = _same_size(rel, raw, rig, first)
         fractions[(sub, name)] = max_code_fraction(raw)
+        clipped[(sub, name)] = clipped_mask(raw)
         loaded[sub][name] = to_linear(raw, response)
 
     known = set(REQUIRED) | set(OPTIONAL)
@@ -209,6 +222,7 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
         raw_max_fraction=fractions,
         path=root,
         extra=extra,
+        clipped=clipped,
     )
 
 
@@ -310,8 +324,10 @@ def capture_set_from_raw(
     response = rig.camera.response_curve()
     lin: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     top: dict[tuple[str, str], float] = {}
+    clipped: dict[tuple[str, str], np.ndarray] = {}
     for sub, images in (("white", white), ("screen", screen)):
         for name, raw in images.items():
             lin[sub][name] = to_linear(np.asarray(raw), response)
             top[(sub, name)] = max_code_fraction(np.asarray(raw))
-    return CaptureSet(rig, lin["white"], lin["screen"], top, Path(path))
+            clipped[(sub, name)] = clipped_mask(np.asarray(raw))
+    return CaptureSet(rig, lin["white"], lin["screen"], top, Path(path), clipped=clipped)

@@ -138,15 +138,27 @@ def _decode_table(response: Response, dtype: str) -> np.ndarray:
 
 
 def max_code_fraction(raw: np.ndarray) -> float:
-    """Fraction of pixel-channels at the maximum code: 255 (uint8), 65535 (uint16), or >= 1.0
-    for float linear images. A measure of saturation, 0..1."""
+    """Fraction of pixel-channels at the maximum code: 255 (uint8), 65535 (uint16). A measure
+    of saturation, 0..1. Float linear images (``.npy``) have no maximum code: light above 1
+    (the full scale of the base exposure) is what an HDR merge holds, not clipping, so they
+    count as 0 (a bracket whose shortest frame clips is refused when it is captured)."""
     if raw.size == 0:
         return 0.0
     if raw.dtype == np.uint8:
         return float(np.count_nonzero(raw == 255)) / raw.size
     if raw.dtype == np.uint16:
         return float(np.count_nonzero(raw == 65535)) / raw.size
-    return float(np.count_nonzero(raw >= 1.0)) / raw.size
+    return 0.0
+
+
+def clipped_mask(raw: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels with a channel at the maximum code (255 for uint8, 65535 for
+    uint16). Float captures are linear measurements (HDR merges included) and clip nowhere."""
+    if raw.dtype == np.uint8:
+        return np.any(raw == 255, axis=-1) if raw.ndim == 3 else raw == 255
+    if raw.dtype == np.uint16:
+        return np.any(raw == 65535, axis=-1) if raw.ndim == 3 else raw == 65535
+    return np.zeros(raw.shape[:2], bool)
 
 
 def write_png(path: str | Path, rgb: np.ndarray) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewcomp.calib.model.lobe import lobe_lookup, lobe_position
 from viewcomp.calib.model.runtime import RuntimeModel
 
 
@@ -60,14 +61,10 @@ def lut_inverse_forward(
 
 
 def lobe_change(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
-    """ds(x) = kappa ((R.V_eye)^+ ^gamma - (R.V_cam)^+ ^gamma), shape (H, W, 3)."""
-    eye = np.asarray(eye, np.float32)
-    v = eye - model.pos
-    v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    g = np.float32(model.gamma)
-    se = np.maximum(np.sum(model.refl * v, axis=-1), 0.0) ** g
-    sc = model.cam_lobe
-    return (model.kappa[None, None, :] * (se - sc)[..., None]).astype(np.float32)
+    """ds(x) = lobe(t_eye(x)) - lobe(t_cam(x)), the specular ratio's change from the
+    calibration camera to ``eye``: (H, W, 3) float32."""
+    t = lobe_position(model.refl, model.pos, eye, model.lobe_half)
+    return (lobe_lookup(np.asarray(model.lobe, np.float32), t) - model.cam_lobe).astype(np.float32)
 
 
 def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
@@ -78,11 +75,17 @@ def white_response(model: RuntimeModel, frame: np.ndarray) -> np.ndarray:
     return pw @ model.Ww.T
 
 
-def screen_mixing_at(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
-    """M(x) = Wc(x) + diag(ds(x)) Ww(x): the real screen's colour mixing seen from ``eye``
-    (pixel method), so that the screen shows M(x) f(I) + Ac(x) there. (H, W, 3, 3)."""
+def screen_at(model: RuntimeModel, eye: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The real screen seen from ``eye`` (pixel method): it shows M(x) f(I) + A(x) there.
+
+    M = Wc + diag(ds) Ww and A = Ac + ds (lambda Aw): the lobe's change scales the white
+    screen's light, and the share lambda (``lobe_black``) of its black level that is the
+    projector's leak (room light comes from elsewhere). Returns M (H, W, 3, 3) and A
+    (H, W, 3), float32.
+    """
     ds = lobe_change(model, eye)
-    return model.Wc + ds[..., :, None] * model.Ww
+    leak = np.asarray(model.lobe_black, np.float32) * model.Aw
+    return model.Wc + ds[..., :, None] * model.Ww, model.Ac + ds * leak
 
 
 def predict_view(model: RuntimeModel, levels: np.ndarray, eye: np.ndarray) -> np.ndarray:
@@ -92,8 +95,8 @@ def predict_view(model: RuntimeModel, levels: np.ndarray, eye: np.ndarray) -> np
 
     The inverse of :func:`compensate` for each method, through the same helpers:
 
-    - ``pixel``: M(x; eye) f(I) + A_c(x), with M from :func:`screen_mixing_at` (the specular
-      lobe as seen from ``eye``) and f the forward LUT;
+    - ``pixel``: M(x; eye) f(I) + A(x; eye), with M and A from :func:`screen_at` (the
+      specular lobe as seen from ``eye``) and f the forward LUT;
     - ``paper``: W~_c rho_c(I), with W~_c = ``Wc_inv``^-1 and rho_c the inverse of the inverse
       LUT, both of the model's own eye (a paper model is made for one eye; ``eye`` must be
       that one).
@@ -108,8 +111,8 @@ def predict_view(model: RuntimeModel, levels: np.ndarray, eye: np.ndarray) -> np
         raise ValueError(f"levels must be {(*model.shape, 3)}, got {lv.shape}")
     if model.method == "pixel":
         light = lut_forward(model.fwd_lut, lv)
-        m = screen_mixing_at(model, eye)
-        return (np.einsum("hwij,hwj->hwi", m, light) + model.Ac).astype(np.float32)
+        m, a = screen_at(model, eye)
+        return (np.einsum("hwij,hwj->hwi", m, light) + a).astype(np.float32)
     y = lut_inverse_forward(model.inv_lut, model.inv_lo, model.inv_hi, lv / np.float32(255.0))
     wc = np.linalg.inv(model.Wc_inv.astype(np.float64)).astype(np.float32)
     return (y @ wc.T).astype(np.float32)
@@ -146,8 +149,8 @@ def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray
     ``paper`` (valid range [inv_lo, inv_hi]).
     """
     if model.method == "pixel":
-        m = screen_mixing_at(model, eye)
-        return np.linalg.solve(m, (target - model.Ac)[..., None])[..., 0].astype(np.float32)
+        m, a = screen_at(model, eye)
+        return np.linalg.solve(m, (target - a)[..., None])[..., 0].astype(np.float32)
     return (target @ model.Wc_inv.T).astype(np.float32)
 
 

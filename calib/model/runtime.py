@@ -14,6 +14,8 @@ from typing import Literal
 
 import numpy as np
 
+from viewcomp.calib.model.lobe import lobe_lookup, lobe_position
+
 Method = Literal["pixel", "paper", "identity"]
 
 
@@ -26,8 +28,11 @@ class RuntimeModel:
     -> linear value; ``inv_lut`` (N, 3) linear value -> level/255, sampled uniformly on
     [``inv_lo``, ``inv_hi``] per channel.
 
-    ``pixel``: ``Ww``/``Wc`` (H, W, 3, 3), ``Aw``/``Ac`` (H, W, 3), ``kappa`` (3,), ``gamma``,
-    and derived from those, :attr:`cam_lobe`.
+    ``pixel``: ``Ww``/``Wc`` (H, W, 3, 3), ``Aw``/``Ac`` (H, W, 3), the specular lobe
+    ``lobe`` (n, 3) over the coordinate of :mod:`~viewcomp.calib.model.lobe` (``lobe_half``:
+    the half-vector angle, else the mirror angle), ``lobe_black`` (3,) the share of the white
+    screen's black level Aw that the lobe reflects (projector leak), and derived from those,
+    :attr:`cam_lobe`.
     ``paper``: ``Ww`` (3, 3) = W~_w, ``Wc_inv`` (3, 3) = (W~_c at the eye)^-1; ``Aw``/``Ac``
     are unused (zeros); ``fwd_lut`` is rho_w and ``inv_lut`` is rho_c^-1 at the current eye.
     """
@@ -45,22 +50,21 @@ class RuntimeModel:
     Wc_inv: np.ndarray | None = None
     Aw: np.ndarray | None = None
     Ac: np.ndarray | None = None
-    kappa: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
-    gamma: float = 1.0
+    lobe: np.ndarray = field(default_factory=lambda: np.zeros((2, 3), np.float32))
+    lobe_half: bool = True
+    lobe_black: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
 
     @functools.cached_property
     def cam_lobe(self) -> np.ndarray:
-        """The lobe's shape seen from the calibration camera, max(R . normalize(cam_eye - p),
-        0)^gamma, (H, W) float32 in [0, 1] (pixel method; every backend reads this one).
+        """The lobe seen from the calibration camera, per channel: (H, W, 3) float32, >= 0
+        (pixel method; every backend reads this one).
 
-        Computed on first use from ``refl``, ``pos``, ``cam_eye`` and ``gamma`` and kept
-        (``dataclasses.replace`` makes a new model, which computes its own); assigning to
-        those fields of an existing model afterwards does not update it.
+        Computed on first use from ``refl``, ``pos``, ``cam_eye``, ``lobe`` and ``lobe_half``
+        and kept (``dataclasses.replace`` makes a new model, which computes its own);
+        assigning to those fields of an existing model afterwards does not update it.
         """
-        vc = np.asarray(self.cam_eye, np.float32) - self.pos
-        vc /= np.linalg.norm(vc, axis=-1, keepdims=True)
-        g = np.float32(self.gamma)
-        return (np.maximum(np.sum(self.refl * vc, axis=-1), 0.0) ** g).astype(np.float32)
+        t = lobe_position(self.refl, self.pos, self.cam_eye, self.lobe_half)
+        return lobe_lookup(np.asarray(self.lobe, np.float32), t)
 
     @property
     def shape(self) -> tuple[int, int]:

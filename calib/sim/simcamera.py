@@ -38,7 +38,10 @@ import numpy as np
 from viewcomp.calib.io.captureset import write_capture_set
 from viewcomp.calib.io.patterns import chessboard, graycode_patterns, table1_patterns
 from viewcomp.calib.sim.simulator import (
+    AnyScreen,
     CameraPhysics,
+    MaterialScreen,
+    ProjectorPhysics,
     Screen,
     Simulator,
     make_screen,
@@ -56,9 +59,20 @@ from viewcomp.calib.world.rig import CaptureSpec, Rig
 CAMERA_FRAMES = 2
 
 
-def camera_simulator(rig: Rig, seed: int = 0) -> Simulator:
-    """A simulator for camera-space captures on ``rig`` (``CAMERA_FRAMES`` per capture)."""
-    return Simulator(rig=rig, seed=seed, camera=CameraPhysics(frames=CAMERA_FRAMES))
+def camera_simulator(
+    rig: Rig,
+    seed: int = 0,
+    projector: ProjectorPhysics | None = None,
+    exposure: float | None = None,
+    hdr_stops: tuple[float, ...] | None = None,
+) -> Simulator:
+    """A simulator for camera-space captures on ``rig`` (``CAMERA_FRAMES`` per capture), with
+    ``projector`` (None: the default :class:`ProjectorPhysics`), the camera's ``exposure``
+    (None: :class:`CameraPhysics`'s) and HDR bracket ``hdr_stops`` (None: single exposures)."""
+    camera = CameraPhysics(frames=CAMERA_FRAMES, hdr_stops=hdr_stops)
+    if exposure is not None:
+        camera = replace(camera, exposure=exposure)
+    return Simulator(rig=rig, seed=seed, camera=camera, projector=projector or ProjectorPhysics())
 
 
 SIM_CAMERA_DISTORTION: tuple[float, float, float, float, float] = (-0.08, 0.02, 0.0, 0.0, 0.0)
@@ -169,7 +183,7 @@ class SimCamera:
         self.blur_px = float(blur_px)
         # the same physics without the room light: radiance - lit = the ambient part
         self._lit_sim = replace(sim, ambient=(0.0, 0.0, 0.0))
-        self._ambient: tuple[Screen, np.ndarray] | None = None  # last screen's room light
+        self._ambient: tuple[AnyScreen, np.ndarray] | None = None  # last screen's room light
 
     @cached_property
     def view(self) -> CameraView:
@@ -192,7 +206,7 @@ class SimCamera:
             borderMode=cv2.BORDER_REPLICATE,
         )
 
-    def radiance(self, screen: Screen, image: np.ndarray) -> np.ndarray:
+    def radiance(self, screen: AnyScreen, image: np.ndarray) -> np.ndarray:
         """What leaves the screen toward the camera, per camera pixel: (Hc, Wc, 3) float32
         linear, before the camera (exposure, vignetting, blur, noise).
 
@@ -203,7 +217,7 @@ class SimCamera:
         out = self._sample(lit) * self.view.inside[..., None]
         return out + self._room_light(screen, image, lit)
 
-    def _room_light(self, screen: Screen, image: np.ndarray, lit: np.ndarray) -> np.ndarray:
+    def _room_light(self, screen: AnyScreen, image: np.ndarray, lit: np.ndarray) -> np.ndarray:
         """The ambient part of the radiance in camera space (it does not depend on the
         pattern; kept for the last screen)."""
         if self._ambient is None or self._ambient[0] is not screen:
@@ -211,7 +225,7 @@ class SimCamera:
             self._ambient = (screen, self._sample(full - lit))
         return self._ambient[1]
 
-    def linear(self, screen: Screen, image: np.ndarray, vignetting: bool = True) -> np.ndarray:
+    def linear(self, screen: AnyScreen, image: np.ndarray, vignetting: bool = True) -> np.ndarray:
         """The camera's linear signal before noise and clipping: (Hc, Wc, 3) float32."""
         lin = self.sim.expose(self.radiance(screen, image), vignetting=False)
         if vignetting and self.sim.camera.vignetting:
@@ -221,10 +235,11 @@ class SimCamera:
             lin = cv2.GaussianBlur(lin, (0, 0), self.blur_px, borderType=cv2.BORDER_REFLECT)
         return lin
 
-    def capture(self, screen: Screen, image: np.ndarray, key: str) -> np.ndarray:
+    def capture(self, screen: AnyScreen, image: np.ndarray, key: str) -> np.ndarray:
         """What the camera records: (Hc, Wc, 3) uint8 (uint16 for > 8 bits) encoded values,
-        with noise seeded by (sim.seed, ``key``)."""
-        return self.sim.quantise(self.sim.noise(self.linear(screen, image), key))
+        with noise seeded by (sim.seed, ``key``); float32 linear light when the camera
+        brackets exposures (:meth:`Simulator.record`)."""
+        return self.sim.record(self.linear(screen, image), key)
 
 
 def geometric_patterns(w: int, h: int) -> dict[str, np.ndarray]:
@@ -242,16 +257,26 @@ def geometric_patterns(w: int, h: int) -> dict[str, np.ndarray]:
 
 
 def capture_camera_patterns(
-    cam: SimCamera, screen: Screen, black: bool = True, geometric: str = "all"
+    cam: SimCamera, screen: AnyScreen, black: bool = True, geometric: str = "all"
 ) -> dict[str, np.ndarray]:
     """Camera-space captures of one screen: Table 1 (and black) plus geometric patterns.
 
     ``geometric``: ``"all"`` (chessboard and Gray code), ``"chessboard"`` or ``"none"``.
     Returns name -> (Hc, Wc, 3) uint8, in capture order.
     """
+    todo = camera_patterns(cam.sim.rig.projector.resolution, black, geometric)
+    return {n: cam.capture(screen, img, f"{screen.name}/{n}") for n, img in todo.items()}
+
+
+def camera_patterns(
+    size: tuple[int, int], black: bool = True, geometric: str = "all"
+) -> dict[str, np.ndarray]:
+    """The patterns of one screen's camera-space captures, in capture order: Table 1 (and
+    black) plus ``geometric`` (``"all"``: chessboard and Gray code, ``"chessboard"``,
+    ``"none"``), for a projector of ``size`` (W, H). Name -> (H, W, 3) uint8."""
     if geometric not in ("all", "chessboard", "none"):
         raise ValueError(f'geometric must be "all", "chessboard" or "none", got {geometric!r}')
-    w, h = cam.sim.rig.projector.resolution
+    w, h = size
     pats = table1_patterns(w, h)
     names = [n for n in TABLE1_NAMES if black or n != "black"]
     todo = {n: pats[n] for n in names}
@@ -260,31 +285,41 @@ def capture_camera_patterns(
         if geometric == "chessboard":
             geo = {"chessboard": geo["chessboard"]}
         todo.update(geo)
-    return {n: cam.capture(screen, img, f"{screen.name}/{n}") for n, img in todo.items()}
+    return todo
 
 
 def simulate_camera_set(
     out_dir: str | Path,
-    screen: str | tuple[float, float, float] = "magenta",
+    screen: str | tuple[float, float, float] | AnyScreen = "magenta",
     gloss: str | tuple[float, float] = "glossy",
     seed: int = 0,
     rig: Rig | None = None,
     black: bool = True,
+    *,
+    projector: ProjectorPhysics | None = None,
+    exposure: float | None = None,
+    hdr_stops: tuple[float, ...] | None = None,
 ) -> list[Path]:
     """Write a camera-space capture set: what the simulated camera records, lens and all.
 
     white/: Table 1 (and black) and the chessboard on the ideal white screen; screen/: the
     same on the real screen plus the Gray-code captures. The rig.toml says ``space =
-    "camera"`` and leaves the lens distortion out (see :func:`written_rig`). Returns the files.
+    "camera"`` and leaves the lens distortion out (see :func:`written_rig`). ``screen`` is a
+    colour (with ``gloss``: :func:`make_screen`) or a screen already made (a measured
+    material's); ``projector``, ``exposure`` and ``hdr_stops`` as :func:`camera_simulator`
+    (with ``hdr_stops`` the captures are float32 linear ``.npy``). Returns the files.
 
     Raises:
         SimulatorError: an unknown screen or gloss.
         GeometryError: a rig whose camera does not face the screen.
     """
     true_rig = camera_rig(rig or simulation_rig())
-    sim = camera_simulator(true_rig, seed)
+    sim = camera_simulator(true_rig, seed, projector, exposure, hdr_stops)
     cam = SimCamera(sim)
-    scr = make_screen(screen, gloss, shape=sim.shape, seed=seed)
+    if isinstance(screen, Screen | MaterialScreen):
+        scr = screen
+    else:
+        scr = make_screen(screen, gloss, shape=sim.shape, seed=seed)
     white = capture_camera_patterns(cam, white_screen(), black, geometric="chessboard")
     real = capture_camera_patterns(cam, scr, black, geometric="all")
     return write_capture_set(out_dir, written_rig(true_rig), white, real)

@@ -7,11 +7,12 @@ it reads embedded as hexadecimal:
 
 - ``VC_MAP0`` .. ``VC_MAP7`` (pixel method): texel k of every pixel of the GL compensator's
   maps (:func:`viewcomp.rt.gl.compensator.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
-  refl, pos | the camera's lobe), ``rgba16`` (16-bit unsigned normalised: value = offset +
-  t (max - min) per texel channel over the grid) or, with ``precision=32``, ``rgba32f``
-  (exact, twice the size);
-- ``VC_LUT`` (``rgba32f``, 2 rows): row 0 the forward LUT at the 256 levels, row 1 the
-  inverse LUT (N entries on [inv_lo, inv_hi]).
+  refl | the camera's lobe (R), p.xy | the camera's lobe (G, B)), ``rgba16`` (16-bit
+  unsigned normalised: value = offset + t (max - min) per texel channel over the grid) or,
+  with ``precision=32``, ``rgba32f`` (exact, twice the size);
+- ``VC_LUT`` (``rgba32f``, 3 rows): row 0 the forward LUT at the 256 levels, row 1 the
+  inverse LUT (N entries on [inv_lo, inv_hi]), row 2 the specular lobe's table (pixel
+  method; zeros for the paper's).
 
 The hook's GLSL is not written here: it is ``mpv_pixel.glsl`` or ``mpv_paper.glsl`` of
 :mod:`viewcomp.shaders` with the formula of ``compensate_core.glsl`` (the GL compensator's)
@@ -135,13 +136,16 @@ def pack_maps(
 
 
 def _lut_image(model: RuntimeModel) -> np.ndarray:
-    """(2, Wl, 4) float32: row 0 the forward LUT (256 levels), row 1 the inverse LUT."""
+    """(3, Wl, 4) float32: row 0 the forward LUT (256 levels), row 1 the inverse LUT, row 2
+    the lobe table (zeros for the paper's method)."""
     fwd = np.asarray(model.fwd_lut, np.float32)
     inv = np.asarray(model.inv_lut, np.float32)
-    wl = max(256, inv.shape[0])
-    img = np.zeros((2, wl, 4), np.float32)
+    lobe = np.asarray(model.lobe, np.float32) if model.method == "pixel" else np.zeros((2, 3))
+    wl = max(256, inv.shape[0], lobe.shape[0])
+    img = np.zeros((3, wl, 4), np.float32)
     img[0, :256, :3] = fwd
     img[1, : inv.shape[0], :3] = inv
+    img[2, : lobe.shape[0], :3] = lobe
     img[..., 3] = 1.0
     return img
 
@@ -230,8 +234,9 @@ def export_mpv_shader(
         defines.update({
             "VC_S_INIT": array_literal("vec4", [vec_literal(r) for r in scale]),
             "VC_O_INIT": array_literal("vec4", [vec_literal(r) for r in offset]),
-            "VC_KAPPA": vec_literal(model.kappa),
-            "VC_GAMMA": literal(model.gamma),
+            "VC_LOBE_HALF": "true" if model.lobe_half else "false",
+            "VC_LOBE_N": int(np.shape(model.lobe)[0]),
+            "VC_LOBE_BLACK": vec_literal(model.lobe_black),
             **{f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()},
             "VC_PARAM": int(param),
         })  # fmt: skip

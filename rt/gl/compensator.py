@@ -60,24 +60,25 @@ from viewcomp.rt.gl.context import (
     set_sampler_units,
 )
 from viewcomp.rt.media.frames import Planes, yuv_coefficients
-from viewcomp.shaders import build_program, literal, vec_literal
+from viewcomp.shaders import build_program, vec_literal
 
 _METHODS = {"identity": 0, "pixel": 1, "paper": 2}
 _CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
 _VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
 _PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached"}
-_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view".split()
+_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe".split()
 MAP_TEXELS = 8  # per pixel in pixel_texels
 
 
 def pixel_texels(model: RuntimeModel) -> np.ndarray:
     """The pixel method's per-pixel values as (H, W, 8, 4) float32 texels, in the order that
     ``pixel_maps`` of compensate_core.glsl reads: texels 0..2 = row i of Ww | Aw[i], 3..5 =
-    row i of Wc | Ac[i], 6 = R | 0, 7 = p (metres) | the camera's lobe
-    (:attr:`RuntimeModel.cam_lobe`).
+    row i of Wc | Ac[i], 6 = R | the camera's lobe (red), 7 = p.x, p.y (metres; p.z = 0, the
+    screen plane) | the camera's lobe (green, blue) (:attr:`RuntimeModel.cam_lobe`).
 
     Raises:
-        ValueError: an array missing, of the wrong shape or not finite, naming it.
+        ValueError: an array missing, of the wrong shape or not finite, or points off the
+            screen plane, naming it.
     """
     h, w = model.shape
     out = np.zeros((h, w, MAP_TEXELS, 4), np.float32)
@@ -87,12 +88,27 @@ def pixel_texels(model: RuntimeModel) -> np.ndarray:
         out[:, :, 3 * k : 3 * k + 3, :3] = _f32(getattr(model, mat), (h, w, 3, 3), mat)
         out[:, :, 3 * k : 3 * k + 3, 3] = _f32(getattr(model, amb), (h, w, 3), amb)
     out[:, :, 6, :3] = _f32(model.refl, (h, w, 3), "refl")
-    out[:, :, 7, :3] = _f32(model.pos, (h, w, 3), "pos")
+    pos = _f32(model.pos, (h, w, 3), "pos")
+    if np.abs(pos[..., 2]).max(initial=0.0) > 1e-6:
+        raise ValueError("pos must lie on the screen plane z = 0 (docs/MODEL.md section 1)")
+    out[:, :, 7, :2] = pos[..., :2]
     _f32(model.cam_eye, (3,), "cam_eye")
+    _lobe_table(model)
     lobe = model.cam_lobe
     if not np.all(np.isfinite(lobe)):
-        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and gamma")
-    out[:, :, 7, 3] = lobe
+        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and lobe")
+    out[:, :, 6, 3] = lobe[..., 0]
+    out[:, :, 7, 2:] = lobe[..., 1:]
+    return out
+
+
+def _lobe_table(model: RuntimeModel) -> np.ndarray:
+    """The lobe table as (n, 4) float32 texels (RGB | 0), n >= 2, checked."""
+    lobe = np.asarray(model.lobe)
+    if lobe.ndim != 2 or lobe.shape[1] != 3 or lobe.shape[0] < 2:
+        raise ValueError(f"lobe must be (n, 3) with n >= 2, got {lobe.shape}")
+    out = np.zeros((lobe.shape[0], 4), np.float32)
+    out[:, :3] = _f32(lobe, lobe.shape, "lobe")
     return out
 
 
@@ -279,10 +295,11 @@ class Compensator:
         self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
         if model.method == "pixel":
             units.update(self._upload_pixel_maps(model))
-            self._consts["KAPPA"] = vec_literal(_f32(model.kappa, (3,), "kappa"))
-            if not math.isfinite(float(model.gamma)):
-                raise ValueError(f"gamma must be finite, got {model.gamma}")
-            self._consts["GAMMA"] = literal(model.gamma)
+            lobe = _lobe_table(model)
+            units["u_lobe"] = self._buffer_texture(lobe, "rgba32f")
+            self._consts["LOBE_N"] = int(lobe.shape[0])
+            self._consts["LOBE_HALF"] = "true" if model.lobe_half else "false"
+            self._consts["LOBE_BLACK"] = vec_literal(_f32(model.lobe_black, (3,), "lobe_black"))
             sq = inverse_position(self._inv_lo, self._inv_hi, n_inv)
             self._consts.update({f"SQ_{k.upper()}": vec_literal(v) for k, v in sq.items()})
         if model.method == "paper":

@@ -18,6 +18,10 @@ import numpy as np
 
 from viewcomp.cli import UsageError
 
+#: The simulated screen without --screen and --gloss.
+DEFAULT_SCREEN = "magenta"
+DEFAULT_GLOSS = "glossy"
+
 
 def nonnegative(text: str) -> float:
     """An argparse type: a finite number >= 0."""
@@ -92,22 +96,45 @@ def add_simulator_arguments(
     gloss: bool = True,
     space: bool = False,
     size: str | None = "--size",
+    material: bool = False,
 ) -> None:
     """The simulated world: ``--screen`` (a name or R,G,B: :func:`screen_colour`),
     ``--gloss``, ``--space``, ``--seed`` and the projector grid (``size`` names the flag;
-    None for none; the value is WxH text, see :func:`parse_size`)."""
-    from viewcomp.calib.sim.simulator import GLOSS_PRESETS, SCREEN_COLOURS
+    None for none; the value is WxH text, see :func:`parse_size`). With ``material``, also
+    ``--material`` (a measured material instead of ``--screen``/``--gloss``) and
+    ``--projector``. ``--screen`` and ``--gloss`` are None when not given (so that
+    ``--material`` can refuse them): read them through :func:`simulated_screen`."""
+    from viewcomp.calib.sim.simulator import GLOSS_PRESETS, PROJECTOR_PRESETS, SCREEN_COLOURS
 
     if screen:
         p.add_argument(
             "--screen",
-            default="magenta",
+            default=None,
             help=f"simulated screen colour: {', '.join(SCREEN_COLOURS)}, or R,G,B albedos in "
             "0..1 (default: magenta)",
         )
     if gloss:
         p.add_argument(
-            "--gloss", default="glossy", choices=sorted(GLOSS_PRESETS), help="default: glossy"
+            "--gloss",
+            default=None,
+            choices=sorted(GLOSS_PRESETS),
+            help="default: glossy",
+        )
+    if material:
+        p.add_argument(
+            "--material",
+            metavar="PATH.npz",
+            default=None,
+            help="a measured material (a neural-BRDF .npz, e.g. of shared/data/materials/) as "
+            "the screen, lit through a projector lens 15 mm across; not with --screen/--gloss",
+        )
+        p.add_argument(
+            "--projector",
+            choices=sorted(PROJECTOR_PRESETS),
+            default=None,
+            help="the simulated projector's response: dlp (black leak 2.5-3.5%%, a kink near "
+            "white, per channel) or default (a power law); default: dlp with --material, "
+            "default otherwise",
         )
     if space:
         p.add_argument(
@@ -126,6 +153,34 @@ def add_simulator_arguments(
             metavar="WxH",
             help="simulated projector grid WxH (default 640x320, the paper's)",
         )
+
+
+def simulated_screen(
+    args: argparse.Namespace,
+) -> tuple[str | tuple[float, float, float], str, str | None, str]:
+    """The options of :func:`add_simulator_arguments` that make the screen, defaults filled
+    in: ``(colour, gloss, material path or None, projector preset name)`` (a command without
+    ``--gloss``, ``--material`` or ``--projector`` gets glossy, None, default).
+
+    Raises:
+        UsageError: ``--material`` given with ``--screen`` or ``--gloss``.
+    """
+    screen = getattr(args, "screen", None)
+    gloss = getattr(args, "gloss", None)
+    material = getattr(args, "material", None)
+    if material is not None and (screen is not None or gloss is not None):
+        given = " and ".join(f for f, v in (("--screen", screen), ("--gloss", gloss)) if v)
+        raise UsageError(
+            f"--material replaces {given}: give either a measured material or an analytic "
+            "screen, not both"
+        )
+    projector = getattr(args, "projector", None) or ("dlp" if material else "default")
+    return (
+        screen_colour(screen if screen is not None else DEFAULT_SCREEN),
+        gloss if gloss is not None else DEFAULT_GLOSS,
+        material,
+        projector,
+    )
 
 
 def screen_colour(text: str) -> str | tuple[float, float, float]:

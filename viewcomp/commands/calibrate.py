@@ -26,6 +26,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "camera's row (Eq. 7)",
     )
     p.add_argument(
+        "--lobe",
+        choices=["auto", "half", "mirror"],
+        default="auto",
+        help="the specular lobe's angle: between the normal and the half vector (microfacet "
+        "lobes), between the mirror direction and the view (Phong), or auto: the one that "
+        "fits the camera's view better (default)",
+    )
+    p.add_argument(
         "--mixing-blur-px",
         type=nonnegative,
         default=None,
@@ -49,19 +57,31 @@ def run(args: argparse.Namespace) -> int:
     space = cs.rig.capture.space
     log(f"calibrating a {w}x{h} projector ({space} space captures, black: {cs.has_black})")
     smooth = DEFAULT_SMOOTH_PX if args.mixing_blur_px is None else args.mixing_blur_px
-    cal = calibrate(cs, fit_mode=args.paper_fit, smooth_px=smooth)
+    lobe_param = None if args.lobe == "auto" else args.lobe
+    cal = calibrate(cs, fit_mode=args.paper_fit, smooth_px=smooth, lobe_param=lobe_param)
     cal.save(args.output)
-    f, lobe = cal.paper.fit, cal.pixel.lobe
-    print(f"wrote {args.output}")
+    lobe = cal.pixel.lobe
+    print(f"wrote {args.output} (methods: {', '.join(cal.methods)})")
+    if cal.paper is not None:
+        f = cal.paper.fit
+        print(
+            f"  paper: log S = log(k_s i_s) + gamma log(R.V) over {f.samples} pixels; "
+            f"gamma {_v(f.gamma)}, R^2 {_v(f.r2)}, rms {_v(f.rms)} (log units)"
+        )
+    else:
+        print(f"  paper: not fitted ({cal.info.get('paper_error')}); the bundle holds the "
+              "per-pixel method alone")  # fmt: skip
+    other = "mirror" if lobe.param == "half" else "half"
     print(
-        f"  paper: log S = log(k_s i_s) + gamma log(R.V) over {f.samples} pixels; "
-        f"gamma {_v(f.gamma)}, R^2 {_v(f.r2)}, rms {_v(f.rms)} (log units)"
+        f"  per-pixel: s = b + lobe({lobe.param} angle), tabulated; baseline "
+        f"{_v(lobe.baseline)}, peak {_v(lobe.peak)}; rms {_v(lobe.rms)} (on the same "
+        f"samples: {other} angle {_v(lobe.rms_other)}, b + kappa (R.V)^gamma "
+        f"{_v(lobe.rms_phong)}, power law {_v(lobe.rms_power_law)}); {lobe.message}"
     )
-    print(
-        f"  per-pixel: s = b + kappa (R.V)^gamma: gamma {lobe.gamma:.1f}, kappa {_v(lobe.kappa)}, "
-        f"baseline {_v(lobe.baseline)}; rms {_v(lobe.rms)} (power law on the same samples: "
-        f"{_v(lobe.rms_power_law)}); {lobe.message}"
-    )
+    clipped = int(cal.info.get("clipped_pixels", 0))
+    if clipped:
+        print(f"  {clipped} pixels clipped in some capture were left out of the fits; "
+              "capture with --hdr to measure them")  # fmt: skip
     print(f"  projector response from the white ramp: rms misfit {cal.pixel.response_rms:.4f}")
     geo = cal.info.get("geometry")
     if geo:
@@ -76,4 +96,4 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _v(a) -> str:
-    return "(" + ", ".join(f"{x:.3g}" for x in a) + ")"
+    return "(" + ", ".join("-" if x is None else f"{x:.3g}" for x in a) + ")"

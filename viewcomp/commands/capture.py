@@ -40,7 +40,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="seconds between showing a pattern and grabbing (default 0.5; 0 with --simulate)",
     )
     p.add_argument(
-        "--exposure", type=float, default=None, help="camera exposure, in the driver's units"
+        "--exposure",
+        type=float,
+        default=None,
+        help="camera exposure, in the driver's units (with --simulate: the simulated camera's "
+        "linear gain, default 0.8); with --hdr the bracket's longest exposure",
+    )
+    p.add_argument(
+        "--hdr",
+        action="store_true",
+        help="bracket every capture (relative exposures 1, 1/4, 1/16, 1/64, 1/256 set through "
+        "the camera's exposure control, as far as it goes) and merge the frames into float32 "
+        "linear .npy captures; needs a camera whose exposure OpenCV can set and a known "
+        "response (--response or --rig)",
     )
     p.add_argument(
         "--camera-size", default=None, help="camera resolution WIDTHxHEIGHT to ask the driver for"
@@ -67,7 +79,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
-    add_simulator_arguments(sim, size="--sim-size")
+    add_simulator_arguments(sim, size="--sim-size", material=True)
     p.set_defaults(run=run)
 
 
@@ -85,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.simulate and (args.camera is None or args.monitor is None):
         raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
     from viewcomp.calib.hw.procedure import NO_TERMINAL, console_prompt, run_capture
+    from viewcomp.calib.io.hdr import DEFAULT_STOPS
     from viewcomp.calib.world.rig import load_rig
 
     if not args.yes and not _interactive():
@@ -93,6 +106,11 @@ def run(args: argparse.Namespace) -> int:
     template = load_rig(args.rig) if args.rig else None
     response = args.response
     if response is None and template is None and not args.simulate:
+        if args.hdr:
+            raise UsageError(
+                "--hdr needs the camera's response to merge the bracket: give --response "
+                "srgb|linear|GAMMA or a --rig with one (estimating it needs 8-bit captures)"
+            )
         response = "estimate"
     if response is not None and response != "estimate":
         from viewcomp.calib.world.response import parse_response
@@ -129,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
             frames=args.frames,
             settle=settle,
             response=response,
+            hdr_stops=DEFAULT_STOPS if args.hdr else None,
         )
     finally:
         projector.close()
@@ -159,15 +178,29 @@ def _simulated(
 
     from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
     from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
-    from viewcomp.calib.sim.simulator import make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import screen_colour
+    from viewcomp.calib.sim.simulator import (
+        PROJECTOR_PRESETS,
+        AnyScreen,
+        make_screen,
+        material_screen,
+        simulation_rig,
+        white_screen,
+    )
+    from viewcomp.commands._common import simulated_screen
 
+    colour, gloss, material, projector = simulated_screen(args)
     rig = template or simulation_rig()
     if size is not None:
         rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
     true_rig = scaled_camera_rig(rig, size)
-    sim = camera_simulator(true_rig, args.seed)
-    screen = make_screen(screen_colour(args.screen), args.gloss, shape=sim.shape, seed=args.seed)
+    if args.exposure is not None and not args.exposure > 0:
+        raise UsageError(f"--exposure of the simulated camera is a gain > 0, got {args.exposure}")
+    sim = camera_simulator(true_rig, args.seed, PROJECTOR_PRESETS[projector], args.exposure)
+    screen: AnyScreen
+    if material is not None:
+        screen = material_screen(material)
+    else:
+        screen = make_screen(colour, gloss, shape=sim.shape, seed=args.seed)
     dev = _SimulatedRig(sim, {"white": white_screen(), "screen": screen})
     # the simulated world's geometry is known: write it (without the lens, for calibrate)
     return dev, dev.projector, dev.camera, written_rig(true_rig)

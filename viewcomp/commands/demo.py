@@ -41,17 +41,18 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.imageio import write_png
     from viewcomp.calib.sim.simulate import simulate_capture_set
     from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import Log, screen_colour
+    from viewcomp.commands._common import Log, simulated_screen
 
     log = Log()
     out = Path(args.out)
     caps = out / "captures"
-    colour = screen_colour(args.screen)
-    log(f"simulating a glossy {args.screen} screen: capture set in {caps}")
+    colour = simulated_screen(args)[0]
+    name = colour if isinstance(colour, str) else args.screen
+    log(f"simulating a glossy {name} screen: capture set in {caps}")
     simulate_capture_set(caps, colour, "glossy", seed=args.seed)
     log("calibrating both methods")
     cal = calibrate(read_capture_set(caps))
-    bundle = out / f"{args.screen if isinstance(colour, str) else 'screen'}.vcb"
+    bundle = out / f"{colour if isinstance(colour, str) else 'screen'}.vcb"
     cal.save(bundle)
     cal = Calibration.load(bundle)
     log(f"wrote the calibration bundle {bundle}")

@@ -1,0 +1,322 @@
+"""The per-pixel method's specular lobe: a tabulated lobe per channel, fitted to what the
+calibration camera saw (docs/MODEL.md section 4).
+
+The specular ratio of the real to the white screen (ambient removed), per pixel x and channel,
+
+    s(x) = b + lobe(t(x)),     t = sqrt(1 - cos angle)  (viewcomp.calib.model.lobe)
+
+is a diffuse baseline b plus a lobe that depends on the angle between the normal and the half
+vector (``half``, the microfacet parametrisation) or between the mirror direction and the
+view (``mirror``, Phong's). Measured glossy lobes are a ~1-degree spike on a broad haze, often
+coloured; no single power law fits them. So the lobe is a table: the median of s in each
+cell of the table's coordinate over the pixels the camera saw there, lightly smoothed, minus
+the baseline (the level of the farthest angles seen), never negative. Both parametrisations
+are fitted and the one with the smaller residual is kept.
+
+The baseline and the tail come from a fit of b + c exp(-k t^2) to the outer part of the
+curve (a Phong lobe's shape, and a smooth tail for any lobe). Outside the angles the camera
+saw: nearer the peak than any pixel seen (the peak clipped or outside the image), the nearest
+value is held; beyond the farthest, the lobe continues with the tail's decay exp(-k t^2) from
+its last value, k >= 5, so it reaches the diffuse level by 90 degrees. It is never negative
+and never larger than what was measured.
+
+For comparison the fit also reports the residual of the previous model, b + kappa
+(R.V)^gamma by non-linear least squares, and of the paper's power law on the same samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+from scipy.optimize import least_squares
+
+from viewcomp.calib.errors import FitError
+from viewcomp.calib.model.lobe import LOBE_N, LOBE_PARAMS, lobe_lookup, lobe_position
+from viewcomp.calib.world.geometry import ScreenGeometry
+
+#: Samples in each bin of the table's coordinate whose median is the lobe there.
+MIN_BIN_SAMPLES = 24
+
+#: Smallest decay rate k of the tail exp(-k t^2): at 90 degrees (t = 1) it is below 1 %.
+TAIL_MIN_RATE = 5.0
+
+#: Share of the seen coordinate range, at its far end, whose median level is the baseline.
+BASELINE_SHARE = 0.1
+
+
+@dataclass(frozen=True)
+class LobeFit:
+    """The fitted lobe and how well it fits.
+
+    Attributes:
+        param: ``"half"`` or ``"mirror"`` (see the module docstring).
+        table: (LOBE_N, 3) lobe values (units of s) at t = k / (LOBE_N - 1), >= 0.
+        baseline: (3,) b, the diffuse ratio (units of s).
+        t_seen: (lo, hi) the coordinates the camera saw with data.
+        rms: (3,) RMS residual of s - (b + lobe(t)) over the samples (units of s).
+        rms_other: (3,) the same for the other parametrisation's table.
+        rms_phong: (3,) the previous model's, b + kappa (R.V)^gamma.
+        rms_power_law: (3,) the paper's log s = a + gamma log(R.V), in units of s.
+        peak: (3,) the table's largest value (units of s).
+        samples: pixels used; ``masked``: pixels left out as clipped or not finite.
+        message: a line for the user.
+    """
+
+    param: str
+    table: np.ndarray
+    baseline: np.ndarray
+    t_seen: tuple[float, float]
+    rms: np.ndarray
+    rms_other: np.ndarray
+    rms_phong: np.ndarray
+    rms_power_law: np.ndarray
+    peak: np.ndarray
+    samples: int
+    masked: int
+    message: str
+
+    @property
+    def half(self) -> bool:
+        """True for the half-vector parametrisation."""
+        return self.param == "half"
+
+    def value(self, t: np.ndarray) -> np.ndarray:
+        """The lobe at coordinates t (...): (..., 3) float64."""
+        return lobe_lookup(self.table, t)
+
+    def at(self, geometry: ScreenGeometry, eye: np.ndarray) -> np.ndarray:
+        """The lobe on the grid seen from ``eye``: (H, W, 3) float64."""
+        t = lobe_position(geometry.refl, geometry.pos, eye, self.half, np.float64)
+        return self.value(t)
+
+
+def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    """(table (LOBE_N, 3), baseline (3,), (t_lo, t_hi)) from samples t (n,) and s (n, 3)."""
+    n = LOBE_N
+    cell = np.clip(np.rint(t * (n - 1)).astype(np.int64), 0, n - 1)
+    order = np.argsort(cell, kind="stable")
+    cs, ss = cell[order], s[order]
+    starts = np.flatnonzero(np.r_[True, cs[1:] != cs[:-1]])
+    # Consecutive cells merge into bins of at least MIN_BIN_SAMPLES samples (one cell where
+    # the camera saw many pixels, e.g. near the peak; wider where it saw few), each bin's
+    # value the median of its samples at the mean cell of its samples.
+    bin_starts = [0]
+    count = 0
+    for k in range(starts.size):
+        end = starts[k + 1] if k + 1 < starts.size else cs.size
+        count += end - starts[k]
+        if count >= MIN_BIN_SAMPLES and k + 1 < starts.size:
+            bin_starts.append(int(starts[k + 1]))
+            count = 0
+    edges = np.r_[bin_starts, cs.size]
+    if edges.size - 1 < 4:
+        raise FitError(
+            "screen/gray",
+            "the camera saw too few distinct angles of the specular lobe to tabulate it "
+            "(the projected image is too small or the geometry degenerate): check rig.toml",
+        )
+    bins = list(pairwise(edges.tolist()))
+    cells = np.array([cs[a:b].mean() for a, b in bins])
+    med = np.stack([np.median(ss[a:b], axis=0) for a, b in bins])
+    # Fill the cells between seen ones, then smooth lightly (noise of the medians); a one-cell
+    # sigma keeps a one-degree spike (about 13 cells wide in t).
+    lo, hi = int(np.ceil(cells[0])), int(np.floor(cells[-1]))
+    grid = np.arange(lo, hi + 1)
+    curve = np.stack([np.interp(grid, cells, med[:, c]) for c in range(3)], axis=1)
+    curve = gaussian_filter1d(curve, 1.0, axis=0, mode="nearest")
+    t_grid = grid / (n - 1)
+    base = np.empty(3)
+    rate = np.empty(3)
+    for c in range(3):
+        base[c], rate[c] = _tail(t_grid, curve[:, c])
+    lobe = np.maximum(curve - base, 0.0)
+    table = np.empty((n, 3))
+    table[:lo] = lobe[0]
+    table[lo : hi + 1] = lobe
+    # Beyond the farthest angle seen: the tail's own decay, exp(-k t^2), from the last value.
+    t_far = np.arange(hi + 1, n) / (n - 1)
+    t_hi = hi / (n - 1)
+    table[hi + 1 :] = lobe[-1] * np.exp(-rate[None, :] * (t_far[:, None] ** 2 - t_hi**2))
+    return table, base, (lo / (n - 1), hi / (n - 1))
+
+
+def _tail(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """(b, k) of y ~ b + c exp(-k t^2) fitted to the outer part of a lobe curve (the
+    samples past the middle of the seen range, or below a third of its peak over b).
+
+    exp(-k t^2) is a Phong lobe's shape ((R.V)^k = (1 - t^2)^k ~ exp(-k t^2)) and a smooth
+    tail for any lobe; k >= TAIL_MIN_RATE makes it reach the diffuse level b by 90 degrees.
+    """
+    lo_level = float(np.min(y))
+    outer = (t >= t[0] + 0.5 * (t[-1] - t[0])) | (y - lo_level <= (np.max(y) - lo_level) / 3)
+    to, yo = t[outer], y[outer]
+    if to.size < 5 or np.ptp(to) <= 0:
+        return float(np.median(y[-max(1, round(BASELINE_SHARE * y.size)) :])), TAIL_MIN_RATE
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        return p[0] + p[1] * np.exp(-p[2] * to * to) - yo
+
+    b0 = float(yo.min())
+    c0 = max(float(yo.max() - b0), 1e-6) * float(np.exp(min(to.min() ** 2 * 30.0, 50.0)))
+    fit = least_squares(
+        resid,
+        [b0, c0, 30.0],
+        bounds=([0.0, 0.0, TAIL_MIN_RATE], [np.inf, np.inf, 1e5]),
+        x_scale="jac",
+    )
+    return float(fit.x[0]), float(fit.x[2])
+
+
+def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RMS residuals (3,) of b + kappa (R.V)^gamma (least squares) and of the paper's power
+    law log s = a + gamma log(R.V), both on samples rv (n,) > 0 and s (n, 3)."""
+    lx = np.log(np.maximum(rv, 1e-9))
+
+    def model(p: np.ndarray) -> np.ndarray:
+        return p[0:3] + p[3:6] * np.exp(p[6] * lx)[:, None]
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        return (model(p) - y).ravel()
+
+    b0 = np.percentile(y, 5, axis=0)
+    k0 = np.maximum(np.percentile(y, 99.5, axis=0) - b0, 1e-3)
+    best = None
+    for g0 in (5.0, 20.0, 80.0):
+        r = least_squares(
+            resid,
+            np.concatenate([b0, k0, [g0]]),
+            bounds=([0] * 6 + [0.5], [np.inf] * 6 + [5000.0]),
+            x_scale="jac",
+        )
+        if best is None or r.cost < best.cost:
+            best = r
+    rms = np.sqrt(np.mean((model(best.x) - y) ** 2, axis=0))
+    design = np.stack([np.ones_like(lx), lx], axis=1)
+    pl = np.empty(3)
+    for ch in range(3):
+        coef, *_ = np.linalg.lstsq(design, np.log(np.maximum(y[:, ch], 1e-9)), rcond=None)
+        pl[ch] = np.sqrt(np.mean((np.exp(design @ coef) - y[:, ch]) ** 2))
+    return rms, pl
+
+
+def fit_lobe(
+    s: np.ndarray,
+    geometry: ScreenGeometry,
+    valid: np.ndarray | None = None,
+    param: str | None = None,
+    step: int = 1,
+) -> LobeFit:
+    """Tabulate the lobe from the specular ratio the calibration camera saw.
+
+    Args:
+        s: (H, W, 3) specular ratio of the real to the white screen, ambient removed
+            (dimensionless; ~albedo ratio off the highlight, tens to hundreds on a glossy peak).
+        geometry: the rig's per-pixel geometry on the same grid (its camera is the view).
+        valid: (H, W) bool, pixels to use (False: clipped or masked), default all.
+        param: ``"half"`` or ``"mirror"`` to force a parametrisation; None: the one with the
+            smaller residual.
+        step: subsampling of the pixels (1: all).
+
+    Returns:
+        the :class:`LobeFit`; a lobe below the noise is set to zero ("matte").
+
+    Raises:
+        FitError: too few usable pixels or angles, naming the capture.
+    """
+    if s.shape != (*geometry.pos.shape[:2], 3):
+        raise ValueError(f"s must be {(*geometry.pos.shape[:2], 3)}, got {s.shape}")
+    if param is not None and param not in LOBE_PARAMS:
+        raise ValueError(f"param must be one of {LOBE_PARAMS}, got {param!r}")
+    ok = np.all(np.isfinite(s), axis=-1)
+    if valid is not None:
+        ok &= valid
+    ok = ok[::step, ::step]
+    masked = int(ok.size - np.count_nonzero(ok))
+    y = s[::step, ::step][ok].astype(np.float64)
+    if y.shape[0] < 50:
+        raise FitError(
+            "screen/gray",
+            f"only {y.shape[0]} usable pixels to fit the specular lobe ({masked} clipped or "
+            "not finite): capture with a lower exposure or with --hdr",
+        )
+    cam = geometry.camera
+    fits = {}
+    for name in LOBE_PARAMS:
+        t = lobe_position(geometry.refl, geometry.pos, cam, name == "half", np.float64)
+        t = t[::step, ::step][ok]
+        table, base, seen = _table(t, y)
+        pred = base + lobe_lookup(table, t)
+        rms = np.sqrt(np.mean((pred - y) ** 2, axis=0))
+        fits[name] = (table, base, seen, rms)
+    chosen = param or min(LOBE_PARAMS, key=lambda k: float(np.mean(fits[k][3])))
+    other = next(k for k in LOBE_PARAMS if k != chosen)
+    table, base, seen, rms = fits[chosen]
+    rv = np.sum(geometry.refl * _unit(cam - geometry.pos), axis=-1)[::step, ::step][ok]
+    pos = rv > 0
+    if np.count_nonzero(pos) >= 20:
+        sub = np.flatnonzero(pos)[:: max(1, np.count_nonzero(pos) // 20000)]
+        rms_phong, rms_pl = _phong_rms(rv[sub], y[sub])
+    else:
+        rms_phong = rms_pl = np.full(3, np.nan)
+    peak = table.max(axis=0)
+    # Matte: no cell of the lobe stands out of the samples' scatter about the fit.
+    message = f"tabulated lobe ({chosen} angle), peak {np.array2string(peak, precision=3)}"
+    if np.all(peak < 3.0 * rms + 1e-3):
+        table = np.zeros_like(table)
+        peak = np.zeros(3)
+        message = "no specular lobe above the noise: treated as matte"
+    if masked:
+        message += f"; {masked} pixels left out (clipped or not finite)"
+    return LobeFit(
+        param=chosen,
+        table=table,
+        baseline=base,
+        t_seen=seen,
+        rms=rms,
+        rms_other=fits[other][3],
+        rms_phong=rms_phong,
+        rms_power_law=rms_pl,
+        peak=peak,
+        samples=int(y.shape[0]),
+        masked=masked,
+        message=message,
+    )
+
+
+def black_lobe_share(
+    black_ratio: np.ndarray, lobe_cam: np.ndarray, baseline: np.ndarray, valid: np.ndarray
+) -> np.ndarray:
+    """lambda (3,) in [0, 1]: the share of the white screen's black level that is projector
+    light, which the lobe reflects (the projector's black leak), the rest being room light.
+
+    On the black capture the real screen shows A_c = (b + lobe_cam lambda) A_w per pixel: the
+    leak's highlight sits where the gray pattern's does, scaled by lambda. So lambda is the
+    least-squares slope of (A_c / A_w - b) on lobe_cam over the pixels where the lobe seen by
+    the camera is above a tenth of its peak.
+
+    Args:
+        black_ratio: (H, W, 3) A_c / A_w, the black captures' ratio.
+        lobe_cam: (H, W, 3) the fitted lobe seen from the calibration camera.
+        baseline: (3,) b of the lobe fit.
+        valid: (H, W) pixels to use.
+
+    Returns:
+        (3,) lambda; 0 where the lobe is zero or too few pixels show it.
+    """
+    out = np.zeros(3)
+    for c in range(3):
+        lobe = lobe_cam[..., c]
+        peak = float(lobe.max(initial=0.0))
+        use = valid & (lobe > 0.1 * peak) & np.isfinite(black_ratio[..., c]) if peak > 0 else None
+        if use is None or np.count_nonzero(use) < 20:
+            continue
+        x, y = lobe[use], black_ratio[..., c][use] - baseline[c]
+        out[c] = float(np.clip(np.dot(x, y) / max(float(np.dot(x, x)), 1e-12), 0.0, 1.0))
+    return out
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
