@@ -100,9 +100,6 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.hdr import DEFAULT_STOPS
     from viewcomp.calib.world.rig import load_rig
 
-    if not args.yes and not _interactive():
-        raise UsageError(NO_TERMINAL.format(why="is not a terminal"))
-
     template = load_rig(args.rig) if args.rig else None
     response = args.response
     if response is None and template is None and not args.simulate:
@@ -119,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
             parse_response(response)
         except ValueError as e:
             raise UsageError(f"--response: {e}") from None
+    if not args.yes and not _interactive():  # checked last: the other mistakes come first
+        raise UsageError(NO_TERMINAL.format(why="is not a terminal"))
     log = Log()
     base_prompt = (lambda stage, message: _auto(stage, message, log)) if args.yes else None
     if args.simulate:
