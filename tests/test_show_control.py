@@ -315,3 +315,24 @@ def test_embed_example_with_the_frame_in_a_host_texture(display: str) -> None:
     print(p.stdout)
     assert p.returncode == 0, p.stderr
     assert "window vs numpy reference" in p.stdout
+
+
+def test_dropped_frames_are_logged_as_they_happen_rate_limited(caplog: Any) -> None:
+    import logging
+    import math
+
+    from viewcomp.rt.play.player import DROP_LOG_PERIOD, Player, PlayerStats
+
+    player = Player.__new__(Player)
+    player.stats = PlayerStats()
+    player._drops_unlogged, player._drop_logged_at = 0, -math.inf
+    player._file, player._origin = (0, Path("a.mp4")), 100.0
+    with caplog.at_level(logging.WARNING, logger="viewcomp.rt.play.player"):
+        player._dropped(1000.0, 101.0)  # the first: at once
+        player._dropped(1001.0, 101.04)  # within the period: counted
+        player._dropped(1000.0 + DROP_LOG_PERIOD, 102.0)  # the period is over: both
+    msgs = [r.getMessage() for r in caplog.records]
+    assert len(msgs) == 2, msgs
+    assert msgs[0].startswith("dropped 1 late frame (a.mp4 at 1.00 s; 1 in all)")
+    assert msgs[1].startswith("dropped 2 late frames (a.mp4 at 2.00 s; 3 in all)")
+    assert player.stats.dropped == 3
