@@ -3,12 +3,14 @@
 The host here is a plain glfw window; a game engine or kiosk shell does the same with its
 own context. Each frame it: reads its head tracker (simulated: the viewer walks from 60 to
 120 degrees and back), moves the eye, and lets viewcomp draw the compensated frame into the
-host's framebuffer (a letterboxed viewport of the window), then draws its own UI on top and
-swaps. viewcomp never touches the window, the swap or the event loop.
+host's framebuffer (a viewport of the window), then draws its own UI on top and swaps.
+viewcomp never touches the window, the swap or the event loop, draws only into the viewport
+and leaves the host's GL state as it found it: this host keeps blending on for its UI.
 
     python examples/embed_host.py                       # built-in calibration and clip
     python examples/embed_host.py --calib screen.vcb --video clip.mp4
     python examples/embed_host.py --frames 60 --check   # headless check (e.g. under Xvfb)
+    python examples/embed_host.py --texture             # frames from the host's GL texture
 
 ``--check`` compares one presented frame with the numpy reference
 (viewcomp.calib.model.reference.compensate with the same FrameParams) and exits non-zero if more
@@ -62,6 +64,8 @@ def main() -> int:
     ap.add_argument("--size", default="960x540", help="host window size WxH")
     ap.add_argument("--frames", type=int, default=0, help="stop after N frames (0: never)")
     ap.add_argument("--check", action="store_true", help="check a frame against numpy")
+    ap.add_argument("--texture", action="store_true",
+                    help="hand viewcomp the frame in a GL texture of the host's")  # fmt: skip
     args = ap.parse_args()
 
     if args.calib:
@@ -87,6 +91,8 @@ def main() -> int:
 
     # --- viewcomp, embedded -----------------------------------------------------------------
     live = LiveRenderer(cal, ctx, angle=tracker_angle(0.0), eye_tau=0.1)
+    host_tex = ctx.texture(live.grid, 3, dtype="f1")  # where the host keeps its frame
+    ctx.enable(moderngl.BLEND)  # the host's UI blends; viewcomp switches it off and back
     status = 0
     try:
         t0 = time.monotonic()
@@ -99,7 +105,13 @@ def main() -> int:
             ctx.screen.use()
             ctx.viewport = (0, 0, fw, fh)
             ctx.clear(0.1, 0.1, 0.1)  # the host's own background
-            record = live.render(frame, target=ctx.screen, viewport=(0, 0, *live.grid))
+            if args.texture:  # e.g. a frame the host decoded or rendered on the GPU
+                rgb = yuv420p_to_rgb(frame) if isinstance(frame, Planes) else frame
+                host_tex.write(np.ascontiguousarray(rgb[::-1]))  # GL rows: bottom first
+                record = live.render_texture(host_tex.glo, live.grid, target=ctx.screen,
+                                             viewport=(0, 0, *live.grid), components=3)  # fmt: skip
+            else:
+                record = live.render(frame, target=ctx.screen, viewport=(0, 0, *live.grid))
             if args.check and n == 10:
                 shot = np.frombuffer(ctx.screen.read(viewport=(0, 0, *live.grid)), np.uint8)
                 shot = shot.reshape(live.grid[1], live.grid[0], 3)[::-1]
@@ -115,6 +127,7 @@ def main() -> int:
             glfw.swap_buffers(window)
     finally:
         live.release()  # viewcomp's GL objects; the context stays the host's
+        host_tex.release()
         ctx.release()
         glfw.destroy_window(window)
         glfw.terminate()

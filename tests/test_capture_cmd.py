@@ -10,6 +10,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
+from unittest import mock
 
 import cv2
 import numpy as np
@@ -18,7 +19,7 @@ import pytest
 from viewcomp.calib.fit.calibrate import Calibration
 from viewcomp.calib.hw import devices
 from viewcomp.calib.hw.devices import OpenCVCamera, SimulatedRig, average_frames
-from viewcomp.calib.hw.procedure import capture_plan, run_capture
+from viewcomp.calib.hw.procedure import capture_plan, console_prompt, run_capture
 from viewcomp.calib.io.captureset import read_capture_set
 from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.sim.simcamera import scaled_camera_rig, written_rig
@@ -172,6 +173,24 @@ def test_cli_usage_errors(capsys) -> None:
     with pytest.raises(SystemExit):
         main(["capture", "--simulate"])
     assert "OUT_DIR" in capsys.readouterr().err
+
+
+def test_without_a_terminal_or_yes_capture_says_what_it_needs(tmp_path: Path) -> None:
+    """No one can confirm the screen changes: said before any device opens, not "stopped by
+    the user"; and a prompt whose input ends says the same."""
+    out = tmp_path / "caps"
+    r = subprocess.run([sys.executable, "-m", "viewcomp", "capture", str(out), "--simulate",
+                        "--sim-size", "160x80"], stdin=subprocess.DEVNULL, capture_output=True,
+                       text=True, timeout=120)  # fmt: skip
+    assert r.returncode == 2
+    assert "not a terminal" in r.stderr and "--yes" in r.stderr
+    assert "stopped by the user" not in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
+    dev = _sim_rig()
+    with mock.patch("builtins.input", side_effect=EOFError):
+        with pytest.raises(CaptureError, match=r"ended before an answer.*--yes"):
+            _run(dev, out, console_prompt)
+    assert not out.exists()
 
 
 # -- the OpenCV camera over a fake driver ---------------------------------------------------

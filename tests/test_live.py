@@ -18,14 +18,22 @@ from viewcomp.rt.play.live import (
     ANGLE_ADDRESS,
     EYE_ADDRESS,
     MAX_LINE,
+    Blackout,
     EyeState,
     InputError,
     InputHub,
     LineReader,
+    Next,
     NudgeAngle,
     OscListener,
+    Pause,
+    Previous,
+    Resume,
+    Seek,
     SetAngle,
+    SetAngleNorm,
     SetEye,
+    Status,
     eye_to_polar,
     parse_host_port,
     parse_line,
@@ -230,3 +238,47 @@ def test_line_reader_from_a_pipe() -> None:
         SetAngle(60.0), SetEye((0.0, 0.0, 0.7)), SetAngle(120.0),
     ]  # fmt: skip
     assert hub.snapshot()["stdin"].rejected == 3
+
+
+# ----------------------------------------------------------------------- show control
+@pytest.mark.parametrize(
+    ("line", "want"),
+    [
+        ("pause", Pause()), ("RESUME", Resume()), ("seek 12.5", Seek(12.5)), ("next", Next()),
+        ("previous", Previous()), ("blackout 1", Blackout(True)), ("blackout 0", Blackout(False)),
+        ("norm 0.25", SetAngleNorm(0.25)), ("status", Status()),
+    ],
+)  # fmt: skip
+def test_parse_line_show_control(line: str, want: object) -> None:
+    assert parse_line(line) == want
+
+
+@pytest.mark.parametrize(
+    "line", ["pause 1", "seek", "seek -1", "seek x", "blackout", "blackout 2", "norm 1.5",
+             "norm", "status now", "next 2"],
+)  # fmt: skip
+def test_parse_line_show_control_rejects(line: str) -> None:
+    with pytest.raises(InputError):
+        parse_line(line)
+
+
+def test_osc_show_control_and_status_reply_address() -> None:
+    sender = ("127.0.0.1", 5555)
+    assert parse_osc_message("/viewcomp/seek", [3], sender) == Seek(3.0)
+    assert parse_osc_message("/viewcomp/blackout", [1], sender) == Blackout(True)
+    assert parse_osc_message("/viewcomp/angle/norm", [0.5], sender) == SetAngleNorm(0.5)
+    assert parse_osc_message("/viewcomp/status", [], sender) == Status(sender)
+    bad = [("/viewcomp/pause", [1]), ("/viewcomp/seek", []), ("/viewcomp/blackout", [0.5]),
+           ("/viewcomp/angle/norm", [-0.1])]  # fmt: skip
+    for address, args in bad:
+        with pytest.raises(InputError):
+            parse_osc_message(address, args, sender)
+
+
+def test_norm_maps_onto_the_range_and_show_commands_are_not_eye_commands() -> None:
+    state = EyeState(0.5, 0.0, polar_to_eye(90.0, 0.5, 0.0), tau=0.0)
+    state.norm_range = (40.0, 140.0)
+    state.apply(SetAngleNorm(0.2))
+    assert eye_to_polar(state.target)[0] == pytest.approx(60.0)
+    with pytest.raises(TypeError):
+        state.apply(Pause())  # type: ignore[arg-type]

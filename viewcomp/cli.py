@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
+import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from viewcomp import __version__
 
@@ -16,6 +19,7 @@ COMMANDS = (
     "capture",
     "calibrate",
     "render",
+    "preview",
     "evaluate",
     "demo",
     "play",
@@ -31,6 +35,7 @@ A typical session:
   viewcomp simulate caps                      ... or simulated captures, no hardware
   viewcomp calibrate caps -o screen.vcb       captures -> calibration bundle
   viewcomp render screen.vcb in.mp4 -o out.mp4 --angle 60
+  viewcomp preview screen.vcb photo.jpg -o seen.png --angle 60   what the audience sees
   viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
   viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
@@ -83,10 +88,45 @@ class UsageError(Exception):
     """A command-line value that is wrong: the message says which and what is expected."""
 
 
+class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+    """Writes to the current ``sys.stderr`` (which tests and redirections may replace)."""
+
+    @property  # type: ignore[override]
+    def stream(self) -> Any:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value: Any) -> None:
+        pass
+
+
+def _own_words_only(command: str) -> None:
+    """viewcomp's log lines on stderr as ``viewcomp COMMAND: ...`` (WARNING and up unless a
+    command lowers the ``viewcomp`` logger's level); other libraries' log output is not
+    shown: OpenCV's (its own logger, silenced) and python-osc's (the root logger, which gets
+    a handler that drops everything). viewcomp reports what went wrong in its own words."""
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")
+    if "cv2" in sys.modules:  # imported already: its logger was set up from the environment
+        cv2 = sys.modules["cv2"]
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    root = logging.getLogger()
+    if not any(isinstance(h, logging.NullHandler) for h in root.handlers):
+        root.addHandler(logging.NullHandler())
+    own = logging.getLogger("viewcomp")
+    for h in [h for h in own.handlers if isinstance(h, _StderrHandler)]:
+        own.removeHandler(h)
+    handler = _StderrHandler()
+    handler.setFormatter(logging.Formatter(f"viewcomp {command}: %(message)s"))
+    own.addHandler(handler)
+    own.setLevel(logging.WARNING)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 a user error)."""
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # before anything imports cv2
     parser = build_parser()
     args = parser.parse_args(argv)
+    _own_words_only(args.command)
     try:
         return int(args.run(args) or 0)
     except UsageError as e:

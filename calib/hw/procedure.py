@@ -337,14 +337,24 @@ class Bracket:
         return merge_exposures(raws, rels, self.response)
 
 
+NO_TERMINAL = (
+    "capture asks you to put each screen up and confirm, and standard input {why}: run it "
+    "in a terminal, or pass --yes for an unattended run; nothing was written"
+)
+
+
 def console_prompt(stage: str, message: str) -> bool:
-    """Ask on the terminal: Enter continues, q stops. End of input stops too."""
+    """Ask on the terminal: Enter continues, q stops (False).
+
+    Raises:
+        CaptureError: no answer can come (standard input ended or is not readable).
+    """
     print(f"\n[{stage}] {message}", flush=True)
     try:
         answer = input("Press Enter when ready (q to quit): ")
-    except EOFError:
-        print("no answer on standard input: use --yes for unattended runs", flush=True)
-        return False
+    except (EOFError, OSError):
+        print(flush=True)
+        raise CaptureError(NO_TERMINAL.format(why="ended before an answer")) from None
     return answer.strip().lower() not in ("q", "quit")
 
 

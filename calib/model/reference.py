@@ -46,6 +46,20 @@ def lut_inverse(lut: np.ndarray, lo: np.ndarray, hi: np.ndarray, values: np.ndar
     return (a + (b - a) * f).astype(np.float32)
 
 
+def lut_inverse_forward(
+    lut: np.ndarray, lo: np.ndarray, hi: np.ndarray, levels01: np.ndarray
+) -> np.ndarray:
+    """The function :func:`lut_inverse` inverts: the linear value (..., 3) whose inverse-LUT
+    output is ``levels01`` (0..1), by linear interpolation in the same samples (the LUT
+    increases along its first axis; a flat stretch gives its first sample)."""
+    n = lut.shape[0]
+    y = lo[None, :] + (hi - lo)[None, :] * ((np.arange(n) / (n - 1)) ** 2)[:, None]
+    out = np.empty(levels01.shape, np.float32)
+    for c in range(3):
+        out[..., c] = np.interp(levels01[..., c], lut[:, c], y[:, c])
+    return out
+
+
 def lobe_change(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
     """ds(x) = lobe(t_eye(x)) - lobe(t_cam(x)), the specular ratio's change from the
     calibration camera to ``eye``: (H, W, 3) float32."""
@@ -72,6 +86,36 @@ def screen_at(model: RuntimeModel, eye: np.ndarray) -> tuple[np.ndarray, np.ndar
     ds = lobe_change(model, eye)
     leak = np.asarray(model.lobe_black, np.float32) * model.Aw
     return model.Wc + ds[..., :, None] * model.Ww, model.Ac + ds * leak
+
+
+def predict_view(model: RuntimeModel, levels: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    """What the real screen shows, seen from ``eye``, when the projector shows ``levels``:
+    the model's forward prediction, linear camera units (H, W, 3) float32 (0..1 = the
+    calibration camera's full scale; :func:`white_response` is the same for the white screen).
+
+    The inverse of :func:`compensate` for each method, through the same helpers:
+
+    - ``pixel``: M(x; eye) f(I) + A(x; eye), with M and A from :func:`screen_at` (the
+      specular lobe as seen from ``eye``) and f the forward LUT;
+    - ``paper``: W~_c rho_c(I), with W~_c = ``Wc_inv``^-1 and rho_c the inverse of the inverse
+      LUT, both of the model's own eye (a paper model is made for one eye; ``eye`` must be
+      that one).
+
+    Args:
+        model: the runtime model of one method, on an (H, W) projector grid.
+        levels: (H, W, 3) projector levels 0..255 (uint8 or float).
+        eye: (3,) eye position in metres.
+    """
+    lv = np.asarray(levels, np.float32)
+    if lv.shape[:2] != model.shape or lv.ndim != 3 or lv.shape[2] != 3:
+        raise ValueError(f"levels must be {(*model.shape, 3)}, got {lv.shape}")
+    if model.method == "pixel":
+        light = lut_forward(model.fwd_lut, lv)
+        m, a = screen_at(model, eye)
+        return (np.einsum("hwij,hwj->hwi", m, light) + a).astype(np.float32)
+    y = lut_inverse_forward(model.inv_lut, model.inv_lo, model.inv_hi, lv / np.float32(255.0))
+    wc = np.linalg.inv(model.Wc_inv.astype(np.float64)).astype(np.float32)
+    return (y @ wc.T).astype(np.float32)
 
 
 def tone_terms(

@@ -526,6 +526,15 @@ class Compensator:
         self._yuv_key = (planes.colorspace, planes.color_range)
         self._input = 1
 
+    def upload_buffer(self, buffer: moderngl.Buffer) -> None:
+        """Upload an RGB frame already on the GPU: a pixel buffer of this context holding
+        (H, W, 3) uint8 levels in :meth:`upload`'s order (a copy within the driver)."""
+        if buffer.size < self.width * self.height * 3:
+            raise ValueError(f"the buffer holds {buffer.size} bytes, a frame needs "
+                             f"{self.width * self.height * 3}")  # fmt: skip
+        self._rgb.write(buffer, alignment=1)
+        self._input = 0
+
     def draw(self) -> None:
         """Run the shader on the last upload into the own framebuffer.
 

@@ -200,6 +200,7 @@ class AudioPlayer:
         self.stats = AudioStats()
         self._queue: queue.Queue[_Chunk] = queue.Queue(maxsize=max_queue)
         self._origins: dict[int, float] = {}
+        self._cancelled = -1  # files numbered up to this one are not to be heard
         self._cond = threading.Condition()
         self._stop = threading.Event()
         layout = "stereo" if output.channels == 2 else "mono"
@@ -226,12 +227,20 @@ class AudioPlayer:
                 del self._origins[old]
             self._cond.notify_all()
 
+    def cancel(self, seq: int) -> None:
+        """Drop the audio of file ``seq`` and earlier (a pause, seek, next or previous)."""
+        with self._cond:
+            self._cancelled = max(self._cancelled, seq)
+            self._cond.notify_all()
+
     def _origin(self, seq: int) -> float | None:
         with self._cond:
             while seq not in self._origins and not self._stop.is_set():
-                if any(k > seq for k in self._origins):
-                    return None  # that file was skipped: its audio is stale
+                if seq <= self._cancelled or any(k > seq for k in self._origins):
+                    return None  # that file was skipped or cancelled: its audio is stale
                 self._cond.wait(0.1)
+            if seq <= self._cancelled:
+                return None
             return self._origins.get(seq)
 
     def _samples(self, frame: Any) -> np.ndarray:

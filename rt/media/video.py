@@ -125,6 +125,8 @@ class VideoReader:
         audio: ``"packets"`` to yield audio packets for remuxing, ``"frames"`` to yield
             decoded audio frames for re-encoding, ``"none"`` to skip audio.
         queue_size: bound of the frame queue (decoded frames held in memory at most).
+        start_at: seconds from the first frame to start at (a seek: the container seeks to
+            the keyframe before it and the frames and audio before it are skipped).
 
     Iterating yields :class:`Planes` (with ``time`` in seconds from the first frame) and
     :class:`AudioItem`, in demux order. Decoding errors surface as :class:`VideoError` in the
@@ -137,9 +139,11 @@ class VideoReader:
         fit: tuple[int, int] | None = None,
         audio: AudioMode = "packets",
         queue_size: int = 8,
+        start_at: float = 0.0,
     ) -> None:
         self.path = Path(path)
         self.fit = fit
+        self.start_at = max(float(start_at), 0.0)
         self.audio_mode: AudioMode = audio
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()
@@ -240,11 +244,19 @@ class VideoReader:
             if self.audio_stream is not None and self.audio_mode != "none":
                 streams.append(self.audio_stream)
             t0 = self.info.start
+            skip = self.start_at - 0.5 / float(self.info.rate)  # frames before it are skipped
+            if self.start_at > 0.0:
+                vs = self.video_stream
+                self.container.seek(int((t0 + self.start_at) / vs.time_base), stream=vs,
+                                    backward=True, any_frame=False)  # fmt: skip
             for packet in self.container.demux(streams):
                 if self._stop.is_set():
                     return
                 if packet.stream.type == "video":
                     for frame in packet.decode():
+                        t = float(frame.time) - t0 if frame.time is not None else 0.0
+                        if self.start_at > 0.0 and t < skip:
+                            continue
                         if not self._put(self._planes(frame, t0)):
                             return
                 elif self.audio_mode == "packets":
@@ -253,6 +265,9 @@ class VideoReader:
                             return
                 else:
                     for aframe in packet.decode():
+                        t = float(aframe.time) - t0 if aframe.time is not None else 0.0
+                        if self.start_at > 0.0 and t < self.start_at:
+                            continue
                         if not self._put(AudioItem(frame=aframe)):
                             return
             self._put(_END)

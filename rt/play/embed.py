@@ -31,6 +31,16 @@ most ``tone_hz`` times a second and each frame uses the newest result: frames ne
 it, and with the tone smoothing (``tone_tau``, 0.5 s) the lag does not show. The first
 frame computes it synchronously.
 
+A frame already in one of the host's GL textures goes in with :meth:`LiveRenderer.render_texture`
+(the texture's id, size and format): it is fitted to the grid on the GPU and copied into the
+compensator's input within the driver; only the grid-sized input is read back, and only when
+the tone map takes a new thumbnail (at most ``tone_hz`` times a second).
+
+The host's GL state (docs/PLAYER.md, "Embedding"): :meth:`LiveRenderer.render`,
+:meth:`~LiveRenderer.render_texture`, :meth:`~LiveRenderer.prepare` and
+:meth:`~LiveRenderer.draw` set every state their drawing depends on and restore what they
+changed (:class:`GLStateGuard` lists it), and draw only into the viewport given.
+
 Threading: construct, render and release on the thread where ``ctx`` is current. The eye
 setters are cheap; call them from that thread too (the player queues its inputs there).
 """
@@ -49,8 +59,15 @@ from viewcomp.calib.comp.compensation import Compensation, FrameParams, thumbnai
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.rt.gl.compensator import Compensator
 from viewcomp.rt.gl.context import ProcAddress, default_proc_address, gl_function
-from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes
-from viewcomp.rt.play.live import Command, EyeState, SetAngle, SetEye, check_angle, check_eye
+from viewcomp.rt.media.frames import Planes, fit_rect, fit_rgb, thumbnail_planes
+from viewcomp.rt.play.live import (
+    EyeCommand,
+    EyeState,
+    SetAngle,
+    SetEye,
+    check_angle,
+    check_eye,
+)
 from viewcomp.shaders import build_program
 
 if TYPE_CHECKING:
@@ -65,6 +82,168 @@ _GL_DRAW_FRAMEBUFFER = 0x8CA9
 _GL_COLOR_BUFFER_BIT = 0x4000
 _GL_NEAREST = 0x2600
 _GL_LINEAR = 0x2601
+
+# Capabilities switched off while drawing (and restored): each would change the output.
+_CAPS = {
+    "blend": 0x0BE2, "depth_test": 0x0B71, "cull_face": 0x0B44, "scissor_test": 0x0C11,
+    "stencil_test": 0x0B90, "rasterizer_discard": 0x8C89, "framebuffer_srgb": 0x8DB9,
+    "color_logic_op": 0x0BF2, "polygon_offset_fill": 0x8037, "sample_alpha_to_coverage": 0x809E,
+}  # fmt: skip
+# Integer state saved and restored: (enum, count).
+_INTS = {
+    "viewport": (0x0BA2, 4), "scissor_box": (0x0C10, 4), "current_program": (0x8B8D, 1),
+    "vertex_array": (0x85B5, 1), "draw_framebuffer": (0x8CA6, 1),
+    "read_framebuffer": (0x8CAA, 1), "active_texture": (0x84E0, 1),
+    "array_buffer": (0x8894, 1), "pixel_pack_buffer": (0x88ED, 1),
+    "pixel_unpack_buffer": (0x88EF, 1), "texture_buffer": (0x8C2A, 1),
+    "unpack_alignment": (0x0CF5, 1), "unpack_row_length": (0x0CF2, 1),
+    "unpack_skip_rows": (0x0CF3, 1), "unpack_skip_pixels": (0x0CF4, 1),
+    "pack_alignment": (0x0D05, 1), "pack_row_length": (0x0D02, 1),
+    "pack_skip_rows": (0x0D03, 1), "pack_skip_pixels": (0x0D04, 1),
+    "polygon_mode": (0x0B40, 2),
+}  # fmt: skip
+_GL_TEXTURE0 = 0x84C0
+_GL_TEXTURE_2D, _GL_TEXTURE_BUFFER = 0x0DE1, 0x8C2A
+_GL_TEXTURE_BINDING_2D, _GL_TEXTURE_BINDING_BUFFER = 0x8069, 0x8C2C
+_GL_SAMPLER_BINDING = 0x8919
+_GL_COLOR_WRITEMASK, _GL_DEPTH_WRITEMASK = 0x0C23, 0x0B72
+_GL_COLOR_CLEAR_VALUE, _GL_DEPTH_CLEAR_VALUE = 0x0C22, 0x0B73
+_GL_FRONT_AND_BACK, _GL_FILL = 0x0408, 0x1B02
+_GL_BUFFERS = {"array_buffer": 0x8892, "pixel_pack_buffer": 0x88EB,
+               "pixel_unpack_buffer": 0x88EC, "texture_buffer": 0x8C2A}  # fmt: skip
+_GL_PIXEL_STORE = ("unpack_alignment", "unpack_row_length", "unpack_skip_rows",
+                   "unpack_skip_pixels", "pack_alignment", "pack_row_length", "pack_skip_rows",
+                   "pack_skip_pixels")  # fmt: skip
+_TEXTURE_UNITS = 8  # units 0..7: the compensator's samplers and the presentation pass
+
+
+class GLStateGuard:
+    """Saves the host's GL state before LiveRenderer draws and restores it afterwards.
+
+    Saved, set for the drawing, and restored exactly (raw GL, so any host's state, moderngl
+    or not): the capabilities blend, depth test, face culling, scissor test, stencil test,
+    rasterizer discard, sRGB conversion, colour logic op, polygon offset fill and alpha to
+    coverage (all off while drawing); the viewport and scissor box; the colour and depth
+    write masks (colour on while drawing); the polygon mode (fill while drawing); the
+    current program; the vertex array; the draw and read framebuffers; the active texture
+    unit; the 2D and buffer textures and the sampler objects bound on units 0-7 and on
+    moderngl's ``default_texture_unit`` (no samplers while drawing); the array,
+    pixel-pack, pixel-unpack and texture buffer bindings; the pixel-store alignment, row
+    length and skips for packing and unpacking (moderngl's defaults while drawing); the
+    clear colour and clear depth; and moderngl's idea of the bound framebuffer
+    (``ctx.fbo``). Left as it was because the drawing never touches it: everything else
+    (blend function and colour, depth function and range, stencil functions, cull mode,
+    front face, line width, point size, primitive restart, uniform buffer bindings,
+    textures on other units). Nested uses save and restore once (the outermost).
+    """
+
+    def __init__(self, ctx: Any, proc: ProcAddress) -> None:
+        c = ctypes
+        self.ctx = ctx
+        self._depth = 0
+        self._saved: dict[str, Any] | None = None
+        self._units = sorted({*range(_TEXTURE_UNITS), int(ctx.default_texture_unit)})
+        self.get_i = gl_function("glGetIntegerv", (c.c_uint, c.POINTER(c.c_int)), proc)
+        self.get_b = gl_function("glGetBooleanv", (c.c_uint, c.POINTER(c.c_ubyte)), proc)
+        self.get_f = gl_function("glGetFloatv", (c.c_uint, c.POINTER(c.c_float)), proc)
+        self.is_enabled = gl_function("glIsEnabled", (c.c_uint,), proc, restype=c.c_ubyte)
+        self.enable = gl_function("glEnable", (c.c_uint,), proc)
+        self.disable = gl_function("glDisable", (c.c_uint,), proc)
+        self.viewport = gl_function("glViewport", (c.c_int,) * 4, proc)
+        self.scissor = gl_function("glScissor", (c.c_int,) * 4, proc)
+        self.use_program = gl_function("glUseProgram", (c.c_uint,), proc)
+        self.bind_vao = gl_function("glBindVertexArray", (c.c_uint,), proc)
+        self.bind_fbo = gl_function("glBindFramebuffer", (c.c_uint, c.c_uint), proc)
+        self.active_texture = gl_function("glActiveTexture", (c.c_uint,), proc)
+        self.bind_texture = gl_function("glBindTexture", (c.c_uint, c.c_uint), proc)
+        self.bind_sampler = gl_function("glBindSampler", (c.c_uint, c.c_uint), proc)
+        self.bind_buffer = gl_function("glBindBuffer", (c.c_uint, c.c_uint), proc)
+        self.pixel_store = gl_function("glPixelStorei", (c.c_uint, c.c_int), proc)
+        self.color_mask = gl_function("glColorMask", (c.c_ubyte,) * 4, proc)
+        self.depth_mask = gl_function("glDepthMask", (c.c_ubyte,), proc)
+        self.polygon_mode = gl_function("glPolygonMode", (c.c_uint, c.c_uint), proc)
+        self.clear_color = gl_function("glClearColor", (c.c_float,) * 4, proc)
+        self.clear_depth = gl_function("glClearDepth", (c.c_double,), proc)
+
+    def _ints(self, enum: int, n: int) -> tuple[int, ...]:
+        buf = (ctypes.c_int * 4)()
+        self.get_i(enum, buf)
+        return tuple(buf[:n])
+
+    def snapshot(self) -> dict[str, Any]:
+        """The state this guard restores, read from GL (also for tests)."""
+        out: dict[str, Any] = {k: bool(self.is_enabled(v)) for k, v in _CAPS.items()}
+        for name, (enum, n) in _INTS.items():
+            out[name] = self._ints(enum, n)
+        mask = (ctypes.c_ubyte * 4)()
+        self.get_b(_GL_COLOR_WRITEMASK, mask)
+        out["color_writemask"] = tuple(bool(v) for v in mask)
+        self.get_b(_GL_DEPTH_WRITEMASK, mask)
+        out["depth_writemask"] = bool(mask[0])
+        f = (ctypes.c_float * 4)()
+        self.get_f(_GL_COLOR_CLEAR_VALUE, f)
+        out["clear_color"] = tuple(f)
+        self.get_f(_GL_DEPTH_CLEAR_VALUE, f)
+        out["clear_depth"] = float(f[0])
+        active = out["active_texture"][0]
+        units = {}
+        for u in self._units:
+            self.active_texture(_GL_TEXTURE0 + u)
+            units[u] = (self._ints(_GL_TEXTURE_BINDING_2D, 1)[0],
+                        self._ints(_GL_TEXTURE_BINDING_BUFFER, 1)[0],
+                        self._ints(_GL_SAMPLER_BINDING, 1)[0])  # fmt: skip
+        self.active_texture(active)
+        out["units"] = units
+        return out
+
+    def __enter__(self) -> GLStateGuard:
+        self._depth += 1
+        if self._depth > 1:
+            return self
+        self._saved = self.snapshot()
+        self._fbo = getattr(self.ctx, "fbo", None)
+        for enum in _CAPS.values():
+            self.disable(enum)
+        self.color_mask(1, 1, 1, 1)
+        self.polygon_mode(_GL_FRONT_AND_BACK, _GL_FILL)
+        for name in _GL_PIXEL_STORE:
+            self.pixel_store(_INTS[name][0], 1 if name.endswith("alignment") else 0)
+        self.bind_buffer(_GL_BUFFERS["pixel_unpack_buffer"], 0)
+        self.bind_buffer(_GL_BUFFERS["pixel_pack_buffer"], 0)
+        for u in self._units:
+            self.bind_sampler(u, 0)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._depth -= 1
+        if self._depth > 0 or self._saved is None:
+            return
+        s, self._saved = self._saved, None
+        if hasattr(self.ctx, "fbo"):
+            self.ctx.fbo = self._fbo
+        for name, enum in _CAPS.items():
+            (self.enable if s[name] else self.disable)(enum)
+        self.viewport(*s["viewport"])
+        self.scissor(*s["scissor_box"])
+        self.use_program(s["current_program"][0])
+        self.bind_vao(s["vertex_array"][0])
+        self.bind_fbo(_GL_DRAW_FRAMEBUFFER, s["draw_framebuffer"][0])
+        self.bind_fbo(_GL_READ_FRAMEBUFFER, s["read_framebuffer"][0])
+        for u, (tex2d, texbuf, sampler) in s["units"].items():
+            self.active_texture(_GL_TEXTURE0 + u)
+            self.bind_texture(_GL_TEXTURE_2D, tex2d)
+            self.bind_texture(_GL_TEXTURE_BUFFER, texbuf)
+            self.bind_sampler(u, sampler)
+        self.active_texture(s["active_texture"][0])
+        for name, target in _GL_BUFFERS.items():
+            self.bind_buffer(target, s[name][0])
+        for name in _GL_PIXEL_STORE:
+            self.pixel_store(_INTS[name][0], s[name][0])
+        self.color_mask(*s["color_writemask"])
+        self.depth_mask(s["depth_writemask"])
+        self.polygon_mode(_GL_FRONT_AND_BACK, s["polygon_mode"][0])
+        self.clear_color(*s["clear_color"])
+        self.clear_depth(s["clear_depth"])
 
 
 class _GL:
@@ -265,12 +444,17 @@ class LiveRenderer:
         self._model = self.comp.base_model()
         # The view cache once the eye has rested a quarter second at 30 fps (a tracker's
         # jitter or the eye's easing must not start rebuilds), built over 4 frames.
-        self.compensator = Compensator(
-            self._model, ctx, view_hold=8, view_steps=4, gl_loader=self._proc
-        )
+        self._guard = GLStateGuard(ctx, self._proc)
+        with self._guard:  # its uploads must not follow the host's pixel-store state
+            self.compensator = Compensator(
+                self._model, ctx, view_hold=8, view_steps=4, gl_loader=self._proc
+            )
         h, w = self.compensator.height, self.compensator.width
         self.grid: tuple[int, int] = (w, h)
         self._tone = ToneWorker(self.comp, 1.0 / tone_hz) if async_tone else None
+        self._tone_period = 1.0 / tone_hz
+        self._tex_in: tuple[Any, Any, Any, Any] | None = None
+        self._tex_thumb: tuple[np.ndarray, float] | None = None
         self._released = False
         self.last: FrameRecord | None = None
 
@@ -283,8 +467,10 @@ class LiveRenderer:
         """Move to an eye position (metres; z > 0)."""
         self.apply(SetEye(check_eye((x, y, z))), smooth)
 
-    def apply(self, command: Command, smooth: bool = True) -> None:
-        """Apply a validated command from :mod:`viewcomp.rt.play.live`; ``smooth=False`` jumps."""
+    def apply(self, command: EyeCommand, smooth: bool = True) -> None:
+        """Apply a validated eye command from :mod:`viewcomp.rt.play.live` (``SetAngle``,
+        ``SetAngleNorm``, ``SetEye``, ``NudgeAngle``); ``smooth=False`` jumps. The show
+        control (pause, seek, ...) is the host's: a TypeError here."""
         self.eye_state.apply(command)
         if not smooth:
             self.eye_state.jump()
@@ -320,14 +506,27 @@ class LiveRenderer:
         self._tone.submit(thumb, eye, now)
         return latest
 
+    @property
+    def state_guard(self) -> GLStateGuard:
+        """The guard that saves and restores the host's GL state around every call."""
+        return self._guard
+
     def prepare(self, frame: np.ndarray | Planes, now: float | None = None) -> FrameRecord:
         """Upload a frame and set eye, tone map and model for it; nothing is drawn yet."""
         now = time.monotonic() if now is None else now
-        eye = self.eye_state.update(now).copy()
         if not isinstance(frame, Planes):
             w, h = self.grid
             frame = fit_rgb(np.asarray(frame, np.uint8), w, h)
-        params, tone_eye = self._params(self._thumb(frame), eye, now)
+        with self.state_guard:
+            return self._set_frame(self._thumb(frame), now, frame)
+
+    def _set_frame(
+        self, thumb: np.ndarray, now: float, frame: np.ndarray | Planes | None
+    ) -> FrameRecord:
+        """Eye, tone map and model for a frame with this thumbnail; uploads ``frame`` (None:
+        the input is already in place)."""
+        eye = self.eye_state.update(now).copy()
+        params, tone_eye = self._params(thumb, eye, now)
         if params.model is not self._model:
             m = params.model
             if m.method == "paper":
@@ -337,17 +536,106 @@ class LiveRenderer:
         self.compensator.set_tone(params.alpha, params.beta)
         if isinstance(frame, Planes):
             self.compensator.upload_planes(frame)
-        else:
+        elif frame is not None:
             self.compensator.upload(frame)
         self.last = FrameRecord(eye, params, now, tone_eye, self.identity)
         return self.last
+
+    def prepare_texture(
+        self,
+        texture: int,
+        size: tuple[int, int],
+        components: int = 4,
+        dtype: str = "f1",
+        top_down: bool = False,
+        now: float | None = None,
+    ) -> FrameRecord:
+        """Take the frame from a texture of the host's (same context) instead of numpy.
+
+        Args:
+            texture: the host's GL texture name (``GL_TEXTURE_2D``, not multisampled).
+            size: its (width, height) in texels; any size: fitted to the grid (aspect
+                kept, centred on black) on the GPU, nearest when it is the grid's size,
+                else the ``scale`` filter (linear for "auto").
+            components: 3 (RGB) or 4 (RGBA; alpha ignored).
+            dtype: its texel type in moderngl's names: ``"f1"`` (8-bit normalised, e.g.
+                GL_RGBA8), ``"f2"`` or ``"f4"`` (half or full float, 0..1 = black..white).
+            top_down: False (GL's convention) when texel row 0 is the picture's bottom row,
+                True when it is the top row (e.g. uploaded from an image array as is).
+
+        The host's texture is only read (its parameters are not changed: a sampler object
+        of ours is bound while it is drawn). Equals :meth:`prepare` of the same picture as
+        numpy within one level (the tone map's thumbnail is taken from the same grid).
+        """
+        if dtype not in ("f1", "f2", "f4"):
+            raise ValueError(f"dtype is 'f1', 'f2' or 'f4' (normalised or float), got {dtype!r}")
+        if components not in (3, 4):
+            raise ValueError(f"components is 3 (RGB) or 4 (RGBA), got {components}")
+        tw, th = (int(v) for v in size)
+        if tw < 1 or th < 1:
+            raise ValueError(f"size is (width, height) >= 1, got {size}")
+        now = time.monotonic() if now is None else now
+        with self.state_guard:
+            fbo, pbo, nearest, linear = self._texture_input()
+            gw, gh = self.grid
+            x0, y0, fw, fh = fit_rect(tw, th, gw, gh)
+            host = self.ctx.external_texture(int(texture), (tw, th), components, 0, dtype)
+            try:
+                fbo.use()
+                fbo.clear(0.0, 0.0, 0.0, 1.0)
+                # The rows go into the input in the order upload() takes an array (row 0 =
+                # the picture's top first): the framebuffer's bottom row is the top row.
+                self.ctx.viewport = (x0, y0, fw, fh)
+                exact = (fw, fh) == (tw, th) or self.scale == "nearest"
+                sampler = nearest if exact else linear
+                sampler.use(0)
+                host.use(0)
+                _, _, prog, vao = self._presenter()
+                prog["u_image"].value = 0
+                if "u_flip_y" in prog:
+                    prog["u_flip_y"].value = 0 if top_down else 1
+                vao.render(vertices=3)
+                if "u_flip_y" in prog:
+                    prog["u_flip_y"].value = 0
+                sampler.clear(0)
+                fbo.read_into(pbo, components=3, alignment=1)
+            finally:
+                host.release()  # the wrapper only: an external texture stays the host's
+            self.compensator.upload_buffer(pbo)
+            return self._set_frame(self._texture_thumb(pbo, now), now, None)
+
+    def _texture_input(self) -> tuple[Any, Any, Any, Any]:
+        """(framebuffer, pixel buffer, nearest and linear samplers) of the texture path."""
+        if self._tex_in is None:
+            import moderngl
+
+            w, h = self.grid
+            tex = self._track(self.ctx.texture((w, h), 4, dtype="f1"))
+            fbo = self._track(self.ctx.framebuffer(color_attachments=[tex]))
+            pbo = self._track(self.ctx.buffer(reserve=w * h * 3))
+            samplers = [
+                self._track(self.ctx.sampler(filter=(f, f), repeat_x=False, repeat_y=False))
+                for f in (moderngl.NEAREST, moderngl.LINEAR)
+            ]
+            self._tex_in = (fbo, pbo, samplers[0], samplers[1])
+        return self._tex_in
+
+    def _texture_thumb(self, pbo: Any, now: float) -> np.ndarray:
+        """The tone map's thumbnail of the grid-sized input: read back only when the tone
+        map can take a new one (every frame without ``async_tone``)."""
+        last = self._tex_thumb
+        if last is None or self._tone is None or now - last[1] >= self._tone_period:
+            w, h = self.grid
+            grid = np.frombuffer(pbo.read(), np.uint8).reshape(h, w, 3)
+            last = self._tex_thumb = (thumbnail(grid, self.tone_side), now)
+        return last[0]
 
     def draw(
         self,
         target: moderngl.Framebuffer,
         viewport: tuple[int, int, int, int] | None = None,
         size: tuple[int, int] | None = None,
-        clear: bool = True,
+        clear: bool = False,
     ) -> None:
         """Draw the prepared frame into ``target`` at ``viewport`` (x, y, w, h; GL window
         coordinates, origin bottom-left; default: the grid fitted into the target).
@@ -355,9 +643,20 @@ class LiveRenderer:
         ``size`` is the target's (W, H) (default ``target.size``; a window's default
         framebuffer may have been resized since the context was made). At the grid's size
         the shader writes the viewport directly; at any other size it renders the grid
-        off-screen and scales it with a blit (``scale`` filter). With ``clear`` the rest of
-        the target is cleared to black first (letterbox).
+        off-screen and scales it into the viewport (``scale`` filter). Only the viewport's
+        pixels are written, unless ``clear``: then the rest of the target is cleared to
+        black first (the player's letterbox; a host keeps its own pixels).
         """
+        with self.state_guard:
+            self._draw_into(target, viewport, size, clear)
+
+    def _draw_into(
+        self,
+        target: moderngl.Framebuffer,
+        viewport: tuple[int, int, int, int] | None,
+        size: tuple[int, int] | None,
+        clear: bool,
+    ) -> None:
         tw, th = size if size is not None else tuple(target.size)
         if viewport is None:
             viewport = fit_viewport(self.grid, (tw, th))
@@ -388,15 +687,39 @@ class LiveRenderer:
         viewport: tuple[int, int, int, int] | None = None,
         now: float | None = None,
     ) -> FrameRecord:
-        """:meth:`prepare` then :meth:`draw` (target default: ``ctx.screen``)."""
-        record = self.prepare(frame, now)
-        self.draw(self.ctx.screen if target is None else target, viewport)
+        """:meth:`prepare` then :meth:`draw` (target default: ``ctx.screen``): only the
+        viewport's pixels change, and the host's GL state is as it was afterwards."""
+        with self.state_guard:
+            record = self.prepare(frame, now)
+            self.draw(self.ctx.screen if target is None else target, viewport)
+        return record
+
+    def render_texture(
+        self,
+        texture: int,
+        size: tuple[int, int],
+        target: moderngl.Framebuffer | None = None,
+        viewport: tuple[int, int, int, int] | None = None,
+        *,
+        components: int = 4,
+        dtype: str = "f1",
+        top_down: bool = False,
+        now: float | None = None,
+    ) -> FrameRecord:
+        """:meth:`prepare_texture` then :meth:`draw`: a frame already in a host texture."""
+        with self.state_guard:
+            record = self.prepare_texture(texture, size, components, dtype, top_down, now)
+            self.draw(self.ctx.screen if target is None else target, viewport)
         return record
 
     def warm_up(self, planes: bool = True, present: bool = False) -> None:
         """Compile the shader variant for yuv420p ``planes`` (else RGB) input, and the
         presentation pass with ``present``, by drawing a black frame off-screen once, so the
         first real frame is not late. The tone map is not touched."""
+        with self.state_guard:
+            self._warm_up(planes, present)
+
+    def _warm_up(self, planes: bool, present: bool) -> None:
         w, h = self.grid
         if planes:
             cw, ch = (w + 1) // 2, (h + 1) // 2
@@ -444,7 +767,8 @@ class LiveRenderer:
         linear: bool = False,
     ) -> None:
         """Copy a rectangle between framebuffers of this context, scaling (for overlays)."""
-        self._gl().blit(src, src_rect, dst, dst_rect, linear)
+        with self.state_guard:
+            self._gl().blit(src, src_rect, dst, dst_rect, linear)
 
     def _track(self, obj: Any) -> Any:
         self._objects.append(obj)

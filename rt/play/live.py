@@ -3,11 +3,18 @@
 No GL and no window here, so everything is testable on its own. Sources (docs/INTERFACES.md,
 "Live eye input"):
 
-- OSC over UDP: ``/viewcomp/angle f`` (degrees) and ``/viewcomp/eye fff`` (metres), in a
-  message or (possibly nested) bundles; bundle time tags are ignored (applied on arrival).
-- Lines on standard input (or any file descriptor): ``angle 60`` and ``eye 0.1 0.0 0.5``
-  (commas also separate the numbers); blank lines and lines starting with ``#`` are ignored.
-- Keys and mouse (from :mod:`viewcomp.rt.play.player`): relative moves of the angle.
+- OSC over UDP: ``/viewcomp/angle f`` (degrees), ``/viewcomp/angle/norm f`` (0..1 onto a
+  configured angle range) and ``/viewcomp/eye fff`` (metres), and the show control
+  ``/viewcomp/pause``, ``/viewcomp/resume``, ``/viewcomp/seek f`` (seconds),
+  ``/viewcomp/next``, ``/viewcomp/previous``, ``/viewcomp/blackout i`` and
+  ``/viewcomp/status`` (answered to the sender), in a message or (possibly nested) bundles;
+  bundle time tags are ignored (applied on arrival).
+- Lines on standard input (or any file descriptor): ``angle 60``, ``norm 0.5``,
+  ``eye 0.1 0.0 0.5``, ``pause``, ``resume``, ``seek 12.5``, ``next``, ``previous``,
+  ``blackout 1``, ``status`` (commas also separate the numbers); blank lines and lines
+  starting with ``#`` are ignored.
+- Keys and mouse (from :mod:`viewcomp.rt.play.player`): relative moves of the angle, and the
+  show control.
 
 A malformed or out-of-range message raises :class:`InputError` in the pure parsers; the
 listeners log it (rate-limited: the first few per source, then a count every few seconds)
@@ -39,7 +46,10 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 ANGLE_ADDRESS = "/viewcomp/angle"
+NORM_ADDRESS = "/viewcomp/angle/norm"
 EYE_ADDRESS = "/viewcomp/eye"
+STATUS_ADDRESS = "/viewcomp/status"
+NORM_RANGE = (30.0, 150.0)  # degrees that /viewcomp/angle/norm 0 and 1 map to by default
 ANGLE_MIN, ANGLE_MAX = 1.0, 179.0  # degrees: an angle outside (0, 180) is rejected,
 # and relative moves (keys, mouse) stop at these limits
 EYE_LIMIT = 50.0  # metres: |x|, |y|, |z| of an eye position
@@ -73,7 +83,72 @@ class NudgeAngle:
     degrees: float
 
 
-Command = SetAngle | SetEye | NudgeAngle
+@dataclass(frozen=True)
+class SetAngleNorm:
+    """Move to the angle ``value`` (0..1) of the way through the configured angle range."""
+
+    value: float
+
+
+EyeCommand = SetAngle | SetEye | NudgeAngle | SetAngleNorm
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Hold the picture (the eye stays live)."""
+
+
+@dataclass(frozen=True)
+class Resume:
+    """Play on from the held picture."""
+
+
+@dataclass(frozen=True)
+class Seek:
+    """Go to ``seconds`` in the current file (``relative``: that many seconds on or back)."""
+
+    seconds: float
+    relative: bool = False
+
+
+@dataclass(frozen=True)
+class Next:
+    """The next file of the playlist."""
+
+
+@dataclass(frozen=True)
+class Previous:
+    """The previous file of the playlist."""
+
+
+@dataclass(frozen=True)
+class Blackout:
+    """``on``: show black (playback goes on underneath); off: the picture again."""
+
+    on: bool
+
+
+@dataclass(frozen=True)
+class Status:
+    """Report what the player does: to ``reply_to`` (host, port) over OSC, or (None) stdout."""
+
+    reply_to: tuple[str, int] | None = None
+
+
+ShowCommand = Pause | Resume | Seek | Next | Previous | Blackout | Status
+Command = EyeCommand | ShowCommand
+
+# OSC address -> (stdin keyword, the command for no arguments, or None: takes a number)
+SHOW_ADDRESSES: dict[str, tuple[str, ShowCommand | None]] = {
+    "/viewcomp/pause": ("pause", Pause()),
+    "/viewcomp/resume": ("resume", Resume()),
+    "/viewcomp/next": ("next", Next()),
+    "/viewcomp/previous": ("previous", Previous()),
+    "/viewcomp/seek": ("seek", None),
+    "/viewcomp/blackout": ("blackout", None),
+    STATUS_ADDRESS: ("status", Status()),
+}
+MAX_SEEK = 360_000.0  # seconds (100 hours): a larger position is a typo
 
 
 # ----------------------------------------------------------------------- validation
@@ -108,6 +183,60 @@ def check_eye(values: Sequence[Any]) -> tuple[float, float, float]:
     return x, y, z
 
 
+def check_norm(value: Any) -> float:
+    """A normalised angle in [0, 1]; else InputError."""
+    v = _number(value, "a normalised angle")
+    if not 0.0 <= v <= 1.0:
+        raise InputError(f"a normalised angle is in [0, 1], got {v:g}")
+    return v
+
+
+def check_seek(value: Any) -> float:
+    """A position in seconds, 0 .. MAX_SEEK; else InputError."""
+    v = _number(value, "a position (seconds)")
+    if not 0.0 <= v <= MAX_SEEK:
+        raise InputError(f"a position is in [0, {MAX_SEEK:g}] seconds, got {v:g}")
+    return v
+
+
+def check_flag(value: Any, what: str) -> bool:
+    """0 or 1 (int, float or bool) -> bool; else InputError."""
+    if isinstance(value, bool):
+        return value
+    v = _number(value, what)
+    if v not in (0.0, 1.0):
+        raise InputError(f"{what} is 0 or 1, got {v:g}")
+    return v == 1.0
+
+
+def check_norm_range(lo: float, hi: float) -> tuple[float, float]:
+    """A range of angles (degrees, each in (0, 180), lo != hi) for /viewcomp/angle/norm."""
+    lo, hi = check_angle(lo), check_angle(hi)
+    if lo == hi:
+        raise InputError(f"a normalised-angle range needs two different angles, got {lo:g}:{hi:g}")
+    return lo, hi
+
+
+def _show_command(key: str, args: Sequence[Any], name: str) -> ShowCommand:
+    """A show-control command from its keyword and arguments (already numbers)."""
+    fixed = next((c for k, c in SHOW_ADDRESSES.values() if k == key), None)
+    if fixed is not None:
+        if args:
+            raise InputError(f"{name} takes no arguments, got {len(args)}")
+        return fixed
+    if len(args) != 1:
+        what = "seconds" if key == "seek" else "1 for black, 0 for the picture"
+        raise InputError(f"{name} takes one number ({what}), got {len(args)}")
+    if key == "seek":
+        return Seek(check_seek(args[0]))
+    return Blackout(check_flag(args[0], "blackout"))
+
+
+_WORDS = {k for k, _ in SHOW_ADDRESSES.values()}
+_EXPECTED_LINE = ("`angle DEG`, `norm 0..1`, `eye X Y Z`, `pause`, `resume`, `seek S`, `next`, "
+                  "`previous`, `blackout 0|1` or `status`")  # fmt: skip
+
+
 # ----------------------------------------------------------------------- parsers
 def parse_line(line: str) -> Command | None:
     """One stdin line -> a command, or None for a blank or ``#`` comment line.
@@ -115,7 +244,11 @@ def parse_line(line: str) -> Command | None:
     Grammar (case-insensitive keyword, numbers separated by spaces or commas)::
 
         angle DEG
+        norm V            (0..1 onto the configured angle range)
         eye X Y Z
+        pause | resume | next | previous | status
+        seek SECONDS
+        blackout 0|1
 
     Raises:
         InputError: anything else, numbers out of range, or a line over MAX_LINE characters.
@@ -127,24 +260,34 @@ def parse_line(line: str) -> Command | None:
         return None
     words = text.replace(",", " ").split()
     key, args = words[0].lower(), words[1:]
+    if key not in _WORDS | {"angle", "norm", "eye"}:
+        raise InputError(f"unknown command {words[0]!r:.30}; expected {_EXPECTED_LINE}")
     try:
         nums = [float(a) for a in args]
     except ValueError:
-        raise InputError(f"not numbers in {text!r:.60}; expected `angle 60` or "
-                         "`eye 0.1 0.0 0.5`") from None  # fmt: skip
+        raise InputError(f"not numbers in {text!r:.60}; expected {_EXPECTED_LINE}") from None
     if key == "angle":
         if len(nums) != 1:
             raise InputError(f"`angle` takes one number (degrees), got {len(nums)}")
         return SetAngle(check_angle(nums[0]))
+    if key == "norm":
+        if len(nums) != 1:
+            raise InputError(f"`norm` takes one number (0..1), got {len(nums)}")
+        return SetAngleNorm(check_norm(nums[0]))
     if key == "eye":
         return SetEye(check_eye(nums))
-    raise InputError(f"unknown command {words[0]!r:.30}; expected `angle DEG` or `eye X Y Z`")
+    return _show_command(key, nums, f"`{key}`")
 
 
-def parse_osc_message(address: str, args: Sequence[Any]) -> Command:
+def parse_osc_message(
+    address: str, args: Sequence[Any], sender: tuple[str, int] | None = None
+) -> Command:
     """An OSC message (address, arguments) -> a command.
 
-    ``/viewcomp/angle`` takes one number (int, float or double), ``/viewcomp/eye`` three.
+    ``/viewcomp/angle`` takes one number (int, float or double), ``/viewcomp/angle/norm``
+    one in [0, 1], ``/viewcomp/eye`` three; ``/viewcomp/seek`` one (seconds),
+    ``/viewcomp/blackout`` one (0 or 1), the other show-control addresses none.
+    ``/viewcomp/status`` is answered to ``sender`` (the datagram's source address).
 
     Raises:
         InputError: another address, a wrong count or type of arguments, out of range.
@@ -153,14 +296,27 @@ def parse_osc_message(address: str, args: Sequence[Any]) -> Command:
         if len(args) != 1:
             raise InputError(f"{ANGLE_ADDRESS} takes one number (degrees), got {len(args)}")
         return SetAngle(check_angle(args[0]))
+    if address == NORM_ADDRESS:
+        if len(args) != 1:
+            raise InputError(f"{NORM_ADDRESS} takes one number (0..1), got {len(args)}")
+        return SetAngleNorm(check_norm(args[0]))
     if address == EYE_ADDRESS:
         return SetEye(check_eye(args))
-    raise InputError(f"unknown OSC address {address!r:.60}; expected {ANGLE_ADDRESS} or "
-                     f"{EYE_ADDRESS}")  # fmt: skip
+    if address in SHOW_ADDRESSES:
+        key = SHOW_ADDRESSES[address][0]
+        if key == "status":
+            if args:
+                raise InputError(f"{address} takes no arguments, got {len(args)}")
+            return Status(sender)
+        return _show_command(key, list(args), address)
+    known = ", ".join([ANGLE_ADDRESS, NORM_ADDRESS, EYE_ADDRESS, *SHOW_ADDRESSES])
+    raise InputError(f"unknown OSC address {address!r:.60}; expected one of {known}")
 
 
-def parse_osc_packet(data: bytes) -> list[Command | InputError]:
-    """A UDP datagram -> one result per OSC message in it (a command or the error).
+def parse_osc_packet(
+    data: bytes, sender: tuple[str, int] | None = None
+) -> list[Command | InputError]:
+    """A UDP datagram (from ``sender``) -> one result per OSC message in it.
 
     Raises:
         InputError: the datagram is not an OSC message or bundle at all.
@@ -180,7 +336,7 @@ def parse_osc_packet(data: bytes) -> list[Command | InputError]:
             continue
         msg = timed.message
         try:
-            out.append(parse_osc_message(msg.address, list(msg.params)))
+            out.append(parse_osc_message(msg.address, list(msg.params), sender))
         except InputError as exc:
             out.append(exc)
     return out
@@ -207,9 +363,12 @@ class EyeState:
             :class:`SetAngle`.
         eye: the start position (3,) metres (target and current).
         tau: smoothing time constant in seconds (<= 0: the eye jumps to the target).
+
+    ``norm_range`` (degrees for 0 and 1) maps :class:`SetAngleNorm` onto an angle.
     """
 
     def __init__(self, distance: float, height: float, eye: Sequence[float], tau: float):
+        self.norm_range = NORM_RANGE
         self.distance = float(distance)
         self.height = float(height)
         self.target = np.asarray(eye, np.float64).copy()
@@ -217,18 +376,25 @@ class EyeState:
         self.tau = float(tau)
         self._t: float | None = None
 
-    def apply(self, cmd: Command) -> None:
-        """Set the target from a command (already validated)."""
+    def apply(self, cmd: EyeCommand) -> None:
+        """Set the target from an eye command (already validated).
+
+        Raises:
+            TypeError: a show-control command (the player's, not the eye's).
+        """
         if isinstance(cmd, SetAngle):
             self.target = polar_to_eye(cmd.degrees, self.distance, self.height)
+        elif isinstance(cmd, SetAngleNorm):
+            lo, hi = self.norm_range
+            self.target = polar_to_eye(lo + cmd.value * (hi - lo), self.distance, self.height)
         elif isinstance(cmd, SetEye):
             self.target = np.asarray(cmd.eye, np.float64)
         elif isinstance(cmd, NudgeAngle):
             angle, d, h = eye_to_polar(self.target)
             angle = min(ANGLE_MAX, max(ANGLE_MIN, angle + cmd.degrees))
             self.target = polar_to_eye(angle, d, h)
-        else:  # pragma: no cover - the type union is closed
-            raise TypeError(f"not a command: {cmd!r}")
+        else:
+            raise TypeError(f"not an eye command: {cmd!r}")
 
     def jump(self) -> None:
         """Move the current eye to the target at once."""
@@ -391,6 +557,7 @@ class OscListener:
         self.hub = hub
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        self._send_lock = threading.Lock()
         try:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
             self.sock.bind((host, port))
@@ -412,7 +579,7 @@ class OscListener:
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
-                data, _ = self.sock.recvfrom(65536)
+                data, sender = self.sock.recvfrom(65536)
             except TimeoutError:
                 continue
             except OSError:
@@ -421,7 +588,7 @@ class OscListener:
                 continue
             self.packets += 1
             try:
-                results = parse_osc_packet(data)
+                results = parse_osc_packet(data, tuple(sender[:2]))
             except InputError as exc:
                 self.hub.reject(self.source, exc)
                 continue
@@ -430,6 +597,14 @@ class OscListener:
                     self.hub.reject(self.source, r)
                 else:
                     self.hub.put(self.source, r)
+
+    def send(self, data: bytes, address: tuple[str, int]) -> None:
+        """Send a datagram from the listening socket (replies reach the sender's port)."""
+        with self._send_lock:
+            try:
+                self.sock.sendto(data, address)
+            except OSError as exc:  # an unreachable controller must not stop playback
+                log.warning("osc: cannot send to %s:%d: %s", *address, exc)
 
     def stop(self) -> None:
         """Stop the thread and close the socket."""

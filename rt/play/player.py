@@ -9,7 +9,8 @@ Threads and who owns what:
   fitted to the projector grid) and forwards frames to a bounded queue and audio to the
   :class:`~viewcomp.rt.media.audio.AudioPlayer`;
 - ``viewcomp-tone``: the tone map (and the paper method's model) for the newest frame;
-- ``viewcomp-osc`` / ``viewcomp-stdin``: live eye input (:mod:`viewcomp.rt.play.live`);
+- ``viewcomp-osc`` / ``viewcomp-stdin``: live input, the eye and the show control
+  (:mod:`viewcomp.rt.play.live`), applied by the main thread;
 - ``viewcomp-audio``: writes audio to the device, on the wall clock.
 
 Timing: the wall clock (``time.monotonic``) leads. File k's frame at time t is due at
@@ -18,6 +19,12 @@ drawn when it is due within the render time (running estimate), presented (buffe
 its due time, and dropped unrendered when its slot (due .. due + 1/rate) has passed: late
 frames never accumulate and the picture never drifts. With vsync the swap waits for the
 display's next refresh. Audio chunks are due on the same clock (see ``rt/audio.py``).
+
+Show control (pause, resume, seek, next, previous) is a *jump*: the main thread numbers it
+(a generation) and hands (file, position) to the pump, which reopens that file there; the
+main thread drops what the pump had queued for older generations. A pause is a jump to the
+frame on screen that is held until resume, so the audio of the old position is dropped and
+resumes in step. A still image (an image file) stays up for ``still_seconds``.
 
 Rendering happens at the calibration grid's resolution (what the projector's pixels are);
 a window of another size gets the grid scaled to fit (linear blit, black bars).
@@ -31,6 +38,7 @@ import math
 import os
 import queue
 import signal
+import socket
 import threading
 import time
 from collections import deque
@@ -49,12 +57,21 @@ from viewcomp.rt.media.video import VideoError, VideoReader
 from viewcomp.rt.play.glfw_session import GlfwSession, MonitorInfo
 from viewcomp.rt.play.glfw_session import list_monitors as glfw_monitors
 from viewcomp.rt.play.live import (
+    NORM_RANGE,
+    STATUS_ADDRESS,
+    Blackout,
     InputHub,
     LineReader,
+    Next,
     NudgeAngle,
     OscListener,
+    Pause,
+    Previous,
+    Resume,
+    Seek,
     SetAngle,
     SourceCounts,
+    Status,
     eye_to_polar,
 )
 
@@ -68,6 +85,11 @@ VIDEO_SUFFIXES = {
     ".mp4", ".mkv", ".mov", ".avi", ".webm", ".m4v", ".mpg", ".mpeg", ".ts", ".m2ts", ".ogv",
     ".wmv", ".flv",
 }  # fmt: skip
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+SHOW_TYPES = (Pause, Resume, Seek, Next, Previous, Blackout, Status)
+DROP_LOG_PERIOD = 5.0  # seconds: dropped frames are logged at most this often
+REDRAW_GAP = 1.0 / 30.0  # seconds: between redraws of a held picture for a moving eye
+SEEK_STEP = 10.0  # seconds per [ or ] key
 
 
 class PlayerError(RuntimeError):
@@ -76,7 +98,8 @@ class PlayerError(RuntimeError):
 
 # ----------------------------------------------------------------------- playlist
 def expand_playlist(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
-    """Files as given, folders expanded to their video files (by extension, sorted by name).
+    """Files as given, folders expanded to their video and image files (by extension, sorted
+    by name).
 
     Raises:
         PlayerError: a path that does not exist, or nothing to play.
@@ -87,12 +110,13 @@ def expand_playlist(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
         if p.is_dir():
             found = sorted(
                 (q for q in p.iterdir() if q.is_file() and not q.name.startswith(".")
-                 and q.suffix.lower() in VIDEO_SUFFIXES),
+                 and q.suffix.lower() in VIDEO_SUFFIXES | IMAGE_SUFFIXES),
                 key=lambda q: q.name.lower(),
             )  # fmt: skip
             if not found:
                 raise PlayerError(
-                    f"folder {p} has no video files ({', '.join(sorted(VIDEO_SUFFIXES))})"
+                    f"folder {p} has no video or image files "
+                    f"({', '.join(sorted(VIDEO_SUFFIXES | IMAGE_SUFFIXES))})"
                 )
             out.extend(found)
         elif p.is_file():
@@ -161,7 +185,9 @@ class PlayerOptions:
     ``stdin_fd`` is the descriptor command lines are read from (None: no line input);
     ``osc`` (host, port) to listen on (None: no OSC; port 0: any free port, see
     :attr:`Player.osc_address`); ``max_seconds`` stops playback after that long (None:
-    until the playlist ends, or forever with ``loop``).
+    until the playlist ends, or forever with ``loop``). ``still_seconds``: how long an image
+    file stays up; ``norm_range``: the angles (degrees) ``/viewcomp/angle/norm`` 0 and 1 mean;
+    ``osc_feedback`` (host, port): where the status is pushed every ``feedback_every`` s.
     """
 
     method: str = "pixel"
@@ -187,6 +213,10 @@ class PlayerOptions:
     scale: str = "auto"
     max_seconds: float | None = None
     title: str = "viewcomp"
+    still_seconds: float = 10.0
+    norm_range: tuple[float, float] = NORM_RANGE
+    osc_feedback: tuple[str, int] | None = None
+    feedback_every: float = 1.0
 
 
 @dataclass
@@ -208,6 +238,7 @@ class PlayerStats:
     audio: AudioStats | None = None
     audio_device: str = ""
     files_played: int = 0
+    stills: int = 0  # still images shown (not counted in presented)
 
     @property
     def fps(self) -> float:
@@ -230,12 +261,61 @@ class PlayerStats:
         if self.audio is not None:
             audio = (f"audio {self.audio_device}: {self.audio.written:.1f} s played, "
                      f"{self.audio.dropped:.2f} s dropped late")  # fmt: skip
+        parts = []
+        if self.presented or not self.stills:
+            rate = "" if self.stills else f", {self.fps:.1f} frames/s"
+            parts.append(f"{self.presented} video frames presented, {self.dropped} dropped "
+                         f"({self.drop_percent:.1f} %){rate}")  # fmt: skip
+        if self.stills:
+            parts.append(f"{self.stills} still image{'s' if self.stills != 1 else ''} shown")
         return (
-            f"{self.presented} frames presented, {self.dropped} dropped "
-            f"({self.drop_percent:.1f} %), {self.fps:.1f} frames/s, render "
-            f"{float(r.mean()):.1f} ms mean / {float(np.percentile(r, 95)):.1f} ms p95, "
-            f"longest gap {self.max_present_gap_ms:.0f} ms; {audio}"
+            f"{', '.join(parts)}, render {float(r.mean()):.1f} ms mean / "
+            f"{float(np.percentile(r, 95)):.1f} ms p95, longest gap "
+            f"{self.max_present_gap_ms:.0f} ms; {audio}"
         )
+
+
+@dataclass(frozen=True)
+class PlayerStatus:
+    """What the player shows now (``/viewcomp/status``, stdin ``status``).
+
+    ``file`` the path of the file on screen, ``position`` the time of the frame on screen
+    (seconds from the file's first frame), ``angle`` degrees and ``eye`` metres of the eye
+    the frame on screen was drawn for, ``fps`` presented frames per second (smoothed),
+    ``dropped`` late frames dropped so far, ``blackout`` whether the screen is black.
+    """
+
+    file: str
+    position: float
+    paused: bool
+    angle: float
+    eye: tuple[float, float, float]
+    fps: float
+    dropped: int
+    blackout: bool
+
+    def osc(self) -> bytes:
+        """``/viewcomp/status s f i f f f f f i i`` (the fields in order)."""
+        from pythonosc.osc_message_builder import OscMessageBuilder
+
+        b = OscMessageBuilder(STATUS_ADDRESS)
+        b.add_arg(self.file, "s")
+        b.add_arg(float(self.position), "f")
+        b.add_arg(int(self.paused), "i")
+        b.add_arg(float(self.angle), "f")
+        for v in self.eye:
+            b.add_arg(float(v), "f")
+        b.add_arg(float(self.fps), "f")
+        b.add_arg(int(self.dropped), "i")
+        b.add_arg(int(self.blackout), "i")
+        return b.build().dgram
+
+    def line(self) -> str:
+        """One line for stdout: ``status file=... position=12.345 paused=0 ...``."""
+        x, y, z = self.eye
+        return (f"status file={self.file} position={self.position:.3f} paused={int(self.paused)} "
+                f"angle={self.angle:.2f} eye={x:.4f},{y:.4f},{z:.4f} fps={self.fps:.1f} "
+                f"dropped={self.dropped} blackout={int(self.blackout)}")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -255,9 +335,17 @@ class PresentedFrame:
 @dataclass(frozen=True)
 class _FileStart:
     seq: int
+    gen: int
     index: int
     path: Path
     rate: float
+    still: bool
+    jumped: bool
+
+
+@dataclass(frozen=True)
+class _End:
+    gen: int
 
 
 @dataclass(frozen=True)
@@ -265,8 +353,25 @@ class _Failure:
     exc: BaseException
 
 
-_END = object()
+@dataclass(frozen=True)
+class _Shown:
+    """The frame on screen: file index and path, its time, whether a still, when shown."""
+
+    index: int
+    path: Path
+    time: float
+    still: bool
+    at: float
+    eye: tuple[float, float, float]
+    blackout: bool
+
+
 _ENDED = object()
+
+
+def is_still(path: Path, frames: int | None) -> bool:
+    """An image file (by extension), or a video of a single frame."""
+    return path.suffix.lower() in IMAGE_SUFFIXES or frames == 1
 
 
 class _Overlay:
@@ -315,8 +420,10 @@ class Player:
     every GL object and thread it made and returns :class:`PlayerStats`.
 
     Keys: Left/Right turn by ``angle_step`` (Shift: x5), Home back to the start angle,
-    O the overlay, C compensation on/off (A/B), Esc/Q quit. Dragging with the left mouse
-    button turns: the window's width is 180 degrees.
+    Space pause/resume, ``]``/``[`` seek 10 s on/back, N or Page Down next file, P or Page
+    Up previous, B blackout on/off, S status to stdout, O the overlay, C compensation on/off
+    (A/B), Esc/Q quit. Dragging with the left mouse button turns: the window's width is 180
+    degrees.
     """
 
     def __init__(
@@ -328,6 +435,7 @@ class Player:
     ) -> None:
         self.cal = cal
         self.options = options or PlayerOptions()
+        self._sources = list(playlist)
         self.playlist = expand_playlist(playlist)
         self.on_frame = on_frame
         self.hub = InputHub()
@@ -346,7 +454,24 @@ class Player:
         self._pump_thread: threading.Thread | None = None
         self._failure: BaseException | None = None
         self._next: Any = None
-        self._origin = 0.0
+        self._origin: float | None = None  # set when the file's first frame is scheduled
+        self._floor = -math.inf  # a file's first frame is due no earlier than this
+        self._gen = 0  # jumps requested (main thread)
+        self._cur_gen = 0  # the jump the queued items belong to (main thread)
+        self._jump: tuple[int, int, float] | None = None  # (gen, index, seconds) for the pump
+        self._jump_lock = threading.Lock()
+        self._seq = 0
+        self._still = False
+        self._paused = False
+        self._show_next = False  # paused: show the next frame (after a seek, next, previous)
+        self._blackout = False
+        self._shown: _Shown | None = None
+        self._drawn_key: tuple[Any, ...] | None = None
+        self._drops_unlogged = 0
+        self._drop_logged_at = -math.inf
+        self._feedback_at = -math.inf
+        self._osc: OscListener | None = None
+        self._sock: socket.socket | None = None
         self._prev_end = -math.inf
         self._frame_dur = 1.0 / 30.0
         self._file = (0, self.playlist[0])
@@ -401,6 +526,21 @@ class Player:
         if self._failure is not None:
             raise self._failure
         return self.stats
+
+    def status(self) -> PlayerStatus:
+        """What is on screen now (main thread; see :class:`PlayerStatus`)."""
+        shown = self._shown
+        if shown is None:
+            eye = tuple(float(v) for v in self.renderer.eye) if self.renderer else (0.0,) * 3
+            file, position = str(self._file[1]), 0.0
+        else:
+            eye, file, position = shown.eye, str(shown.path), shown.time
+        return PlayerStatus(
+            file=file, position=position, paused=self._paused,
+            angle=eye_to_polar(np.asarray(eye))[0], eye=eye,  # type: ignore[arg-type]
+            fps=self._fps_now, dropped=self.stats.dropped,
+            blackout=self._blackout if shown is None else shown.blackout,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ set-up
     def _probe(self) -> None:
@@ -477,6 +617,7 @@ class Player:
             tone_side=o.tone_side, scale=o.scale,  # type: ignore[arg-type]
             proc_address=lambda name: int(glfw.get_proc_address(name) or 0),
         )  # fmt: skip
+        self.renderer.eye_state.norm_range = o.norm_range
         self.renderer.warm_up(planes=True, present=self._viewport_needs_scaling(w, h))
         self._overlay = _Overlay(self._ctx)
         glfw.set_key_callback(win, self._on_key)
@@ -505,6 +646,7 @@ class Player:
         if o.osc is not None:
             listener = OscListener(self.hub, *o.osc).start()
             self.osc_address = listener.address
+            self._osc = listener
             self._threads.append(listener)
             log.info("listening for OSC on %s:%d", *listener.address)
         if o.stdin_fd is not None:
@@ -529,6 +671,8 @@ class Player:
                 self._pump_thread.join(timeout=0.1)
         for t in self._threads:
             t.stop()
+        if self._sock is not None:
+            self._sock.close()
         if self._audio is not None:
             self._audio.stop()
             self.stats.audio = self._audio.stats
@@ -548,7 +692,10 @@ class Player:
 
     # ------------------------------------------------------------------ pump thread
     def _put(self, item: Any) -> bool:
+        """Queue an item for the main thread; False when stopping or a jump is pending."""
         while not self._stop.is_set():
+            if self._jump is not None:
+                return False
             try:
                 self._vq.put(item, timeout=0.1)
                 return True
@@ -556,52 +703,106 @@ class Player:
                 continue
         return False
 
+    def _take_jump(self) -> tuple[int, int, float] | None:
+        with self._jump_lock:
+            jump, self._jump = self._jump, None
+        return jump
+
+    def _refresh_playlist(self) -> None:
+        """Re-read the folders of the playlist: files added since are played too."""
+        if not any(Path(p).is_dir() for p in self._sources):
+            return
+        try:
+            new = expand_playlist(self._sources)
+        except PlayerError:  # a folder emptied or gone: play on with what was there
+            return
+        added = [p.name for p in new if p not in self.playlist]
+        if added:
+            log.info("playlist: %d new file%s: %s", len(added), "s" if len(added) > 1 else "",
+                     ", ".join(added[:5]) + (" ..." if len(added) > 5 else ""))  # fmt: skip
+        self.playlist = new
+
     def _pump(self) -> None:
         assert self.renderer is not None
         grid = self.renderer.grid
-        seq = 0
+        seq, gen, index, start, jumped = 0, 0, 0, 0.0, False
+        bad = 0  # unreadable files in a row
         audio_mode = "frames" if self._audio is not None else "none"
         try:
             while not self._stop.is_set():
-                played = 0
-                for index, path in enumerate(self.playlist):
-                    if self._stop.is_set():
-                        return
-                    try:
-                        reader = VideoReader(path, fit=grid, audio=audio_mode,  # type: ignore[arg-type]
-                                             queue_size=self.options.queue_size)  # fmt: skip
-                    except VideoError as exc:
-                        log.error("skipping: %s", exc)
-                        continue
-                    with reader:
-                        start = reader.info.start
-                        if not self._put(_FileStart(seq, index, path, float(reader.info.rate))):
+                playlist = self.playlist
+                if index < 0:
+                    index = len(playlist) - 1 if self.options.loop else 0
+                if index >= len(playlist):
+                    if self.options.loop:
+                        index = 0
+                    else:  # the end: wait for a jump back (previous, seek) or the stop
+                        self._put(_End(gen))
+                        jump = None
+                        while jump is None and not self._stop.wait(0.02):
+                            jump = self._take_jump()
+                        if jump is None:
                             return
+                        gen, index, start = jump
+                        jumped = True
+                        continue
+                path = playlist[index]
+                try:
+                    reader = VideoReader(path, fit=grid, audio=audio_mode,  # type: ignore[arg-type]
+                                         queue_size=self.options.queue_size,
+                                         start_at=start)  # fmt: skip
+                except VideoError as exc:
+                    log.error("skipping: %s", exc)
+                    bad += 1
+                    if bad >= len(playlist):
+                        self._put(_Failure(VideoError("none of the files in the playlist "
+                                                      "could be played (see the errors "
+                                                      "above)")))  # fmt: skip
+                        return
+                    index, start = index + 1, 0.0
+                    continue
+                bad = 0
+                jump = None
+                with reader:
+                    start0 = reader.info.start
+                    still = is_still(path, reader.info.frames)
+                    if self._put(_FileStart(seq, gen, index, path, float(reader.info.rate),
+                                            still, jumped)):  # fmt: skip
                         try:
                             for item in reader:
                                 if self._stop.is_set():
                                     return
+                                if self._jump is not None:
+                                    break
                                 if isinstance(item, Planes):
                                     if not self._put(item):
-                                        return
+                                        break
                                 elif self._audio is not None and item.frame is not None:
-                                    t = (float(item.frame.time) - start
+                                    t = (float(item.frame.time) - start0
                                          if item.frame.time is not None else 0.0)  # fmt: skip
                                     if not self._audio.feed(seq, t, item.frame):
                                         return
                         except VideoError as exc:
                             log.error("stopped playing %s: %s", path, exc)
-                    played += 1
-                    seq += 1
-                if not played:
-                    self._put(_Failure(VideoError("none of the files in the playlist could be "
-                                                  "played (see the errors above)")))  # fmt: skip
+                if self._stop.is_set():
                     return
-                if not self.options.loop:
-                    self._put(_END)
-                    return
+                seq += 1
+                jump = self._take_jump()
+                if jump is not None:
+                    if self._audio is not None:
+                        self._audio.cancel(seq - 1)
+                    gen, index, start = jump
+                    jumped = True
+                    continue
+                self._refresh_playlist()
+                if path in self.playlist:
+                    index = self.playlist.index(path)
+                index, start, jumped = index + 1, 0.0, False
         except BaseException as exc:  # handed to the main thread, which re-raises it
-            self._put(_Failure(exc))
+            while not self._stop.is_set():
+                self._take_jump()
+                if self._put(_Failure(exc)):
+                    return
 
     # ------------------------------------------------------------------ input
     def _on_key(self, win: Any, key: int, scancode: int, action: int, mods: int) -> None:
@@ -609,6 +810,7 @@ class Player:
 
         if action not in (glfw.PRESS, glfw.REPEAT):
             return
+        press = action == glfw.PRESS
         step = self.options.angle_step * (5.0 if mods & glfw.MOD_SHIFT else 1.0)
         if key in (glfw.KEY_ESCAPE, glfw.KEY_Q):
             self.stop()
@@ -618,9 +820,23 @@ class Player:
             self.hub.put("key", NudgeAngle(-step))
         elif key == glfw.KEY_HOME:
             self.hub.put("key", SetAngle(self.options.angle))
-        elif key == glfw.KEY_O and action == glfw.PRESS:
+        elif key == glfw.KEY_SPACE and press:
+            self.hub.put("key", Resume() if self._paused else Pause())
+        elif key == glfw.KEY_RIGHT_BRACKET:
+            self.hub.put("key", Seek(SEEK_STEP, relative=True))
+        elif key == glfw.KEY_LEFT_BRACKET:
+            self.hub.put("key", Seek(-SEEK_STEP, relative=True))
+        elif key in (glfw.KEY_N, glfw.KEY_PAGE_DOWN) and press:
+            self.hub.put("key", Next())
+        elif key in (glfw.KEY_P, glfw.KEY_PAGE_UP) and press:
+            self.hub.put("key", Previous())
+        elif key == glfw.KEY_B and press:
+            self.hub.put("key", Blackout(not self._blackout))
+        elif key == glfw.KEY_S and press:
+            self.hub.put("key", Status())
+        elif key == glfw.KEY_O and press:
             self._show_overlay = not self._show_overlay
-        elif key == glfw.KEY_C and action == glfw.PRESS and self.renderer is not None:
+        elif key == glfw.KEY_C and press and self.renderer is not None:
             self.renderer.identity = not self.renderer.identity
             log.info("compensation %s", "off" if self.renderer.identity else "on")
 
@@ -642,9 +858,92 @@ class Player:
     def _apply_inputs(self) -> None:
         assert self.renderer is not None
         for item in self.hub.drain():
-            self.renderer.apply(item.command)
+            if isinstance(item.command, SHOW_TYPES):
+                self._show_control(item.command)
+            else:
+                self.renderer.apply(item.command)
             self.hub.applied(item)
             self._pending_inputs.append(item.at)
+
+    # ------------------------------------------------------------------ show control
+    def _request_jump(self, index: int, seconds: float) -> None:
+        """Have the pump reopen playlist file ``index`` at ``seconds``; drop what is queued."""
+        with self._jump_lock:
+            self._gen += 1
+            self._jump = (self._gen, index, max(seconds, 0.0))
+        self._next = None
+        self._origin = None
+        self._floor = -math.inf
+        if self._paused:
+            self._show_next = True
+
+    def _show_control(self, cmd: Any) -> None:
+        shown = self._shown
+        index = shown.index if shown is not None else self._file[0]
+        position = shown.time if shown is not None else 0.0
+        if isinstance(cmd, Pause):
+            if not self._paused:
+                self._request_jump(index, position)
+                self._paused = True
+                self._show_next = shown is None  # else the frame on screen is the one held
+                log.info("paused at %.2f s of %s", position, self._file[1].name)
+        elif isinstance(cmd, Resume):
+            if self._paused:
+                self._paused = False
+                self._show_next = False
+                self._origin = None
+                self._floor = -math.inf
+                log.info("resumed")
+        elif isinstance(cmd, Seek):
+            target = position + cmd.seconds if cmd.relative else cmd.seconds
+            self._request_jump(index, target)
+            log.info("seek to %.2f s", max(target, 0.0))
+        elif isinstance(cmd, Next):
+            self._request_jump(index + 1, 0.0)
+        elif isinstance(cmd, Previous):
+            self._request_jump(index - 1, 0.0)
+        elif isinstance(cmd, Blackout):
+            if cmd.on != self._blackout:
+                self._blackout = cmd.on
+                log.info("blackout %s", "on" if cmd.on else "off")
+        elif isinstance(cmd, Status):
+            st = self.status()
+            if cmd.reply_to is None:
+                print(st.line(), flush=True)
+            else:
+                self._send(st.osc(), cmd.reply_to)
+
+    def _send(self, data: bytes, address: tuple[str, int]) -> None:
+        """A datagram to ``address``, from the OSC socket when listening (so replies come
+        from the port the controller sends to)."""
+        if self._osc is not None:
+            self._osc.send(data, address)
+            return
+        if self._sock is None:
+            family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+            self._sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            self._sock.sendto(data, address)
+        except OSError as exc:
+            log.warning("osc feedback: cannot send to %s:%d: %s", *address, exc)
+
+    def _feedback(self, now: float) -> None:
+        o = self.options
+        if o.osc_feedback is None or now - self._feedback_at < o.feedback_every:
+            return
+        self._feedback_at = now
+        self._send(self.status().osc(), o.osc_feedback)
+
+    def _dropped(self, now: float, due: float) -> None:
+        self.stats.dropped += 1
+        self._drops_unlogged += 1
+        if now - self._drop_logged_at >= DROP_LOG_PERIOD:
+            log.warning("dropped %d late frame%s (%s at %.2f s; %d in all)",
+                        self._drops_unlogged, "s" if self._drops_unlogged > 1 else "",
+                        self._file[1].name, due - (self._origin or 0.0),
+                        self.stats.dropped)  # fmt: skip
+            self._drops_unlogged = 0
+            self._drop_logged_at = now
 
     # ------------------------------------------------------------------ main loop
     def _take(self) -> Any:
@@ -653,20 +952,30 @@ class Player:
                 item = self._vq.get_nowait()
             except queue.Empty:
                 return None
-            if isinstance(item, _FileStart):
-                now = time.monotonic()
-                self._origin = max(self._prev_end, now + self._render_est + 0.01)
-                self._frame_dur = 1.0 / item.rate if item.rate > 0 else 1.0 / 30.0
-                self._file = (item.index, item.path)
-                self.stats.files_played += 1
-                if self._audio is not None:
-                    self._audio.set_origin(item.seq, self._origin)
-                continue
-            if item is _END:
-                return _ENDED
             if isinstance(item, _Failure):
                 self._failure = item.exc
                 return _ENDED
+            if isinstance(item, _FileStart):
+                self._cur_gen = item.gen
+                if item.gen < self._gen:
+                    continue
+                self._seq = item.seq
+                self._still = item.still
+                if item.still:
+                    self._frame_dur = max(self.options.still_seconds, 1e-3)
+                else:
+                    self._frame_dur = 1.0 / item.rate if item.rate > 0 else 1.0 / 30.0
+                self._file = (item.index, item.path)
+                self._origin = None
+                self._floor = -math.inf if item.jumped else self._prev_end
+                self.stats.files_played += 1
+                continue
+            if isinstance(item, _End):
+                if item.gen < self._gen:
+                    continue
+                return _ENDED
+            if self._cur_gen < self._gen:  # queued before a jump
+                continue
             return item
 
     def _idle(self, seconds: float) -> None:
@@ -674,6 +983,25 @@ class Player:
             self._glfw.glfw.wait_events_timeout(seconds)  # type: ignore[union-attr]
         else:
             self._glfw.glfw.poll_events()  # type: ignore[union-attr]
+
+    def _state_key(self, now: float) -> tuple[Any, ...]:
+        assert self.renderer is not None
+        eye = self.renderer.eye_state.update(now)
+        return (tuple(float(v) for v in eye), self._blackout, self.renderer.identity)
+
+    def _redraw(self, now: float) -> bool:
+        """Draw the frame on screen again when the eye, blackout or A/B state changed since
+        (a held picture: paused, a still, a decoder behind); True if it drew."""
+        if self._last_planes is None or self._shown is None:
+            return False
+        key = self._state_key(now)
+        if key == self._drawn_key:
+            return False
+        switched = self._drawn_key is None or key[1:] != self._drawn_key[1:]
+        if not switched and now - (self.stats.last_present or now) < REDRAW_GAP:
+            return False
+        self._present(self._last_planes, now, redraw=True)
+        return True
 
     def _loop(self) -> None:
         glfw = self._glfw.glfw  # type: ignore[union-attr]
@@ -692,33 +1020,46 @@ class Player:
             if glfw.window_should_close(self._win) or (deadline is not None and now > deadline):
                 break
             self._apply_inputs()
+            self._feedback(now)
             if self._next is None:
                 self._next = self._take()
             if self._next is _ENDED:  # let the last frame stay up for its slot
                 while not self._stop.is_set() and time.monotonic() < self._prev_end:
+                    self._apply_inputs()
+                    if self._next is not _ENDED:  # a jump back (previous, seek)
+                        break
+                    self._redraw(time.monotonic())
                     self._idle(min(self._prev_end - time.monotonic(), 0.01))
+                if self._next is not _ENDED:
+                    continue
                 break
             item = self._next
+            if self._paused:
+                if item is not None and self._show_next:
+                    self._show_next = False
+                    self._next = None
+                    self._present(item, now, redraw=True)
+                elif not self._redraw(now):
+                    self._idle(0.005)
+                continue
             if item is None:  # the decoder is behind: keep the eye live on the last frame
-                stale = now - (self.stats.last_present or now) > 2.0 * self._frame_dur
-                if (
-                    stale
-                    and self._last_planes is not None
-                    and not np.array_equal(renderer.eye_state.update(now), self._drawn_eye)
-                ):
-                    self._present(self._last_planes, now, redraw=True)
-                else:
+                if not self._redraw(now):
                     self._idle(0.003)
                 continue
+            if self._origin is None:
+                self._origin = max(self._floor, now + self._render_est + 0.01) - item.time
+                if self._audio is not None:
+                    self._audio.set_origin(self._seq, self._origin)
             due = self._origin + item.time
             if now > due + self._frame_dur:  # its whole slot has passed
-                self.stats.dropped += 1
+                self._dropped(now, due)
                 self._prev_end = due + self._frame_dur
                 self._next = None
                 continue
             lead = due - now - self._render_est
             if lead > 0.002:
-                self._idle(min(lead - 0.001, 0.010))
+                if lead < 2.0 * self._render_est + 0.005 or not self._redraw(now):
+                    self._idle(min(lead - 0.001, 0.010))
                 continue
             self._present(item, due)
             self._prev_end = due + self._frame_dur
@@ -730,11 +1071,12 @@ class Player:
         angle, _d, _h = eye_to_polar(eye)
         s = self.stats
         idx, path = self._file
+        state = " PAUSED" if self._paused else ""
         return (
             f"angle {angle:6.1f} deg  eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m",
             f"{self._fps_now:5.1f} fps  dropped {s.dropped} ({s.drop_percent:.1f} %)"
             + ("  COMPENSATION OFF" if self.renderer.identity else ""),
-            f"file {idx + 1}/{len(self.playlist)}: {path.name[:40]}",
+            f"file {idx + 1}/{len(self.playlist)}: {path.name[:40]}{state}",
         )
 
     def _present(self, planes: Planes, due: float, redraw: bool = False) -> None:
@@ -744,8 +1086,12 @@ class Player:
         self._update_viewport()
         t0 = time.monotonic()
         record = renderer.prepare(planes, now=t0)
-        renderer.draw(self._ctx.screen, self._viewport, size=self._fb_size)
-        if self._show_overlay:
+        if self._blackout:
+            self._ctx.screen.use()
+            self._ctx.screen.clear(0.0, 0.0, 0.0, 1.0)
+        else:
+            renderer.draw(self._ctx.screen, self._viewport, size=self._fb_size, clear=True)
+        if self._show_overlay and not self._blackout:
             if t0 - self._overlay.updated > 0.25:
                 self._overlay.update(self._overlay_lines())
                 self._overlay.updated = t0
@@ -757,8 +1103,11 @@ class Player:
         cost = time.monotonic() - t0
         self._render_est = 0.8 * self._render_est + 0.2 * cost
         self.stats.render_ms.append(1e3 * cost)
+        idx, path = self._file
+        still = self._still
+        if redraw and planes is self._last_planes and self._shown is not None:
+            idx, path, still = self._shown.index, self._shown.path, self._shown.still
         if self.on_frame is not None:
-            idx, path = self._file
             self.on_frame(self, PresentedFrame(self.stats.presented, idx, path, planes.time,
                                                due, record, planes))  # fmt: skip
         while True:
@@ -771,13 +1120,15 @@ class Player:
         s = self.stats
         if s.last_present is not None:
             s.max_present_gap_ms = max(s.max_present_gap_ms, 1e3 * (t - s.last_present))
-            if t > s.last_present:
+            if t > s.last_present and not redraw and not still:
                 self._fps_now = 0.9 * self._fps_now + 0.1 / (t - s.last_present)
         if s.first_present is None:
             s.first_present = t
         s.last_present = t
         if redraw:
             s.redrawn += 1
+        elif still:
+            s.stills += 1
         else:
             s.presented += 1
         if self._pending_inputs:
@@ -787,3 +1138,6 @@ class Player:
             self._pending_inputs.clear()
         self._last_planes = planes
         self._drawn_eye = record.eye
+        eye = tuple(float(v) for v in record.eye)
+        self._drawn_key = (eye, self._blackout, renderer.identity)
+        self._shown = _Shown(idx, path, planes.time, still, t, eye, self._blackout)  # type: ignore[arg-type]

@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
     if not args.simulate and (args.camera is None or args.monitor is None):
         raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
-    from viewcomp.calib.hw.procedure import console_prompt, run_capture
+    from viewcomp.calib.hw.procedure import NO_TERMINAL, console_prompt, run_capture
     from viewcomp.calib.io.hdr import DEFAULT_STOPS
     from viewcomp.calib.world.rig import load_rig
 
@@ -116,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
             parse_response(response)
         except ValueError as e:
             raise UsageError(f"--response: {e}") from None
+    if not args.yes and not _interactive():  # checked last: the other mistakes come first
+        raise UsageError(NO_TERMINAL.format(why="is not a terminal"))
     log = Log()
     base_prompt = (lambda stage, message: _auto(stage, message, log)) if args.yes else None
     if args.simulate:
@@ -151,6 +153,14 @@ def run(args: argparse.Namespace) -> int:
         camera.close()
     print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
     return 0
+
+
+def _interactive() -> bool:
+    """True when standard input is a terminal (someone can answer the prompts)."""
+    try:
+        return sys.stdin is not None and sys.stdin.isatty()
+    except (AttributeError, ValueError, OSError):
+        return False
 
 
 def _auto(stage: str, message: str, log: Callable[[str], None]) -> bool:

@@ -8,6 +8,7 @@ from pathlib import Path
 from viewcomp.commands._common import add_simulator_arguments
 
 DEMO_ANGLES = (45, 60, 90, 120, 135)
+WALK_CSV = "# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.eval.metrics import delta_e2000
+    from viewcomp.calib.eval.preview import band, labelled_row
     from viewcomp.calib.eval.testimages import natural_images
     from viewcomp.calib.fit.calibrate import Calibration, calibrate
     from viewcomp.calib.io.captureset import read_capture_set
@@ -74,17 +76,16 @@ def run(args: argparse.Namespace) -> int:
                 tiles[f"{m} method"] = sim.observe(screen, img, eye)
             de = {k: delta_e2000(v, ideal) for k, v in tiles.items()}
             table.append((iname, angle, de))
-            labelled = []
-            for k, v in tiles.items():
-                t = v.copy()
-                text = f"{k} @{angle}" + ("" if k.startswith("white") else f" dE {de[k]:.1f}")
-                cv2.putText(t, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255),
-                            2, cv2.LINE_AA)  # fmt: skip
-                labelled.append(t)
-            rows.append(np.concatenate(labelled, axis=1))
+            small = [cv2.resize(v, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+                     for v in tiles.values()]  # fmt: skip
+            heads = [[k, f"seen at {angle} deg" if k.startswith("white") else f"dE {de[k]:.1f}"]
+                     for k in tiles]  # fmt: skip
+            rows.append(labelled_row(small, heads))
         log(f"compensated {iname} for angles {', '.join(map(str, DEMO_ANGLES))}")
-    grid = np.concatenate(rows, axis=0)
-    grid = cv2.resize(grid, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    body = np.concatenate(rows, axis=0)
+    title = (f"what a viewer sees on the simulated glossy {args.screen} screen at each angle "
+             "(dE: mean CIEDE2000 vs the white screen, lower is better)")  # fmt: skip
+    grid = np.concatenate([band(body.shape[1], [title]), body], axis=0)
     picture = out / "demo.png"
     write_png(picture, grid)
     print("\nmean CIEDE2000 against the white screen (lower is better):")
@@ -103,6 +104,7 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     import numpy as np
 
     from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.eval.preview import labelled_row
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.sim.simulator import white_screen
     from viewcomp.rt.gl.context import GLUnavailable
@@ -110,9 +112,8 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     from viewcomp.rt.render.tracks import load_angle_track
 
     clip, track_csv = out / "clip.mp4", out / "walk.csv"
-    _write_clip(clip, list(images.values()), seconds=4.0, rate=25)
-    walk = "# seconds,degrees: the viewer walks 60 -> 120 -> 60\n0,60\n2,120\n4,60\n"
-    write_text_atomic(track_csv, walk)
+    write_pan_clip(clip, list(images.values()), seconds=4.0, rate=25)
+    write_text_atomic(track_csv, WALK_CSV)
     v = cal.rig.viewer
     track = load_angle_track(track_csv, v.distance, v.height)
     comp_clip = out / "clip-compensated.mp4"
@@ -130,17 +131,21 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     tiles = []
     for t, a, b in zip(times, frames_in, frames_out, strict=False):
         eye = track(t)
+        angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
         row = [sim.observe(white_screen(), a, eye), sim.observe(screen, a, eye),
                sim.observe(screen, b, eye)]  # fmt: skip
-        tiles.append(np.concatenate(row, axis=1))
+        heads = [["white screen (ideal)", f"viewer at {angle:.0f} deg, {t:.1f} s"],
+                 ["uncompensated", ""], ["compensated (GLSL, per-pixel)", ""]]  # fmt: skip
+        tiles.append(labelled_row(row, heads))
     viewer = out / "viewer.mp4"
     _write_frames(viewer, tiles, 25)
     log(f"what the walking viewer sees (white screen | uncompensated | compensated): {viewer}")
     print(f"video: {viewer.resolve()}")
 
 
-def _write_clip(path: Path, images: list, seconds: float, rate: int) -> None:
-    """A slow pan across the images with a 440 Hz tone (the demo's input clip)."""
+def write_pan_clip(path: Path, images: list, seconds: float, rate: int) -> None:
+    """A slow pan across the images with a 440 Hz tone (the demo's input clip; also
+    examples/make_inputs.py's), written atomically."""
     import numpy as np
 
     n = round(seconds * rate)

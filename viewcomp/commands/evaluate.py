@@ -15,7 +15,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "images x seen at 90 and 60, sum of squared errors); sweep: natural images on glossy "
         "screens from 30 to 150 degrees (mean CIEDE2000). Columns: original, paper_90, "
         "paper_theta, pixel_90, pixel_theta, oracle (the simulator's true model inverted). "
-        "Writes report.json, report.md and PNG plots. `all` takes a few minutes.",
+        "Writes report.json, report.md and PNG plots. The default, all, is the slow one "
+        "(the sweep: about 2.5 minutes at 640x320 on a 2-core machine, twice that when it is "
+        "busy); --protocol table2 alone takes about half a minute.",
     )
     p.add_argument("-o", "--output", required=True, help="report folder (created if needed)")
     p.add_argument(
@@ -36,6 +38,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+# Seconds per protocol at 640x320, projector space, measured on this project's 2-core
+# machine when otherwise idle (2026-11-24: table2 32 s, sweep 100 s, plus the report's plots).
+MEASURED_S = {"table2": 35.0, "sweep": 115.0, "materials": 480.0}
+
+
+def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
+    """How long the run will take, honestly: measured times scaled by the grid's pixels."""
+    parts = ["table2", "sweep"] if args.protocol == "all" else [args.protocol]
+    w, h = size or ((320, 160) if args.protocol == "materials" else (640, 320))
+    base = 320 * 160 if args.protocol == "materials" else 640 * 320
+    seconds = sum(MEASURED_S[p] for p in parts) * (w * h) / base
+    span = (f"about {seconds / 60:.1f} minutes" if seconds >= 90 else
+            f"about {seconds:.0f} s")  # fmt: skip
+    note = (
+        "" if args.protocol != "all" else "; the sweep is the slow part (--protocol table2: ~35 s)"
+    )
+    where = "" if args.space == "projector" else "; camera space takes longer still"
+    return f"{span} on an idle 2-core machine, up to twice that when busy{note}{where}"
+
+
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.eval.run import run as run_eval
     from viewcomp.cli import UsageError
@@ -43,12 +65,12 @@ def run(args: argparse.Namespace) -> int:
 
     log = Log(args.quiet)
     size = parse_size(args.size) if args.size else None
-    log(f"evaluating protocol {args.protocol} (seed {args.seed})")
     if args.protocol == "materials" and not args.materials:
         raise UsageError(
             "--protocol materials needs --materials DIR, a folder of measured materials "
             "(.npz neural BRDFs)"
         )
+    log(f"evaluating protocol {args.protocol} (seed {args.seed}): {_estimate(args, size)}")
     rep = run_eval(
         args.output,
         args.protocol,

@@ -9,17 +9,25 @@ import sys
 from viewcomp.commands._common import (
     add_eye_arguments,
     add_tone_arguments,
+    nonnegative,
     parse_size,
     parse_vec3,
 )
 
 EPILOG = """\
-live angle input:
+live angle input and show control:
   keys      Left/Right turn by --step degrees (Shift: 5x), Home: back to the start angle,
+            Space: pause/resume, ]/[: seek 10 s on/back, N or Page Down: next file,
+            P or Page Up: previous file, B: blackout on/off, S: status to stdout,
             O: overlay (angle, eye, fps, drops), C: compensation on/off, Esc/Q: quit
   mouse     drag with the left button: the window's width is 180 degrees
-  OSC/UDP   /viewcomp/angle f (degrees), /viewcomp/eye f f f (metres) to --osc HOST:PORT
-  stdin     lines `angle 60` or `eye 0.1 0.0 0.5`
+  OSC/UDP   to --osc HOST:PORT: /viewcomp/angle f (degrees), /viewcomp/angle/norm f (0..1
+            onto --norm-angle-range), /viewcomp/eye f f f (metres), /viewcomp/pause,
+            /viewcomp/resume, /viewcomp/seek f (seconds), /viewcomp/next, /viewcomp/previous,
+            /viewcomp/blackout i (1 black, 0 picture), /viewcomp/status (answered to the
+            sender: file, position s, paused, angle, eye x y z, fps, dropped, blackout)
+  stdin     lines `angle 60`, `norm 0.5`, `eye 0.1 0.0 0.5`, `pause`, `resume`,
+            `seek 12.5`, `next`, `previous`, `blackout 1`, `status` (printed to stdout)
 Moves are smoothed (--eye-smooth); malformed messages are logged and dropped.
 """
 
@@ -59,6 +67,27 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "nearest for whole-number factors, else linear)")  # fmt: skip
     p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--quiet", action="store_true", help="no log lines, only the summary")
+    show = p.add_argument_group("show control")
+    show.add_argument(
+        "--still-seconds",
+        type=nonnegative,
+        default=10.0,
+        metavar="S",
+        help="how long an image file of the playlist stays up (default 10)",
+    )
+    show.add_argument(
+        "--norm-angle-range",
+        default="30:150",
+        metavar="LO:HI",
+        help="angles (degrees) that /viewcomp/angle/norm 0 and 1 mean (default 30:150)",
+    )
+    show.add_argument(
+        "--osc-feedback",
+        metavar="HOST:PORT",
+        help="push /viewcomp/status to HOST:PORT every --feedback-every s",
+    )
+    show.add_argument("--feedback-every", type=nonnegative, default=1.0, metavar="S",
+                      help="seconds between status pushes (default 1)")  # fmt: skip
     p.set_defaults(run=run)
 
 
@@ -72,11 +101,16 @@ def _stdin_fd() -> int | None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.cli import UsageError
-    from viewcomp.rt.play.live import InputError, check_angle, check_eye, parse_host_port
+    from viewcomp.rt.play.live import (
+        InputError,
+        check_angle,
+        check_eye,
+        check_norm_range,
+        parse_host_port,
+    )
     from viewcomp.rt.play.player import Player, PlayerError, PlayerOptions, list_monitors
 
-    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
-                        format="viewcomp play: %(message)s")  # fmt: skip
+    logging.getLogger("viewcomp").setLevel(logging.WARNING if args.quiet else logging.INFO)
     try:
         if args.list_monitors:
             for m in list_monitors():
@@ -88,6 +122,18 @@ def run(args: argparse.Namespace) -> int:
             osc = parse_host_port(args.osc) if args.osc else None
             eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
             angle = check_angle(args.angle)
+            feedback = parse_host_port(args.osc_feedback) if args.osc_feedback else None
+            lo, sep, hi = args.norm_angle_range.partition(":")
+            try:
+                bounds = (float(lo), float(hi)) if sep else None
+            except ValueError:
+                bounds = None
+            if bounds is None:
+                raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got "
+                                 f"{args.norm_angle_range!r}")  # fmt: skip
+            norm_range = check_norm_range(*bounds)
+            if args.feedback_every <= 0:
+                raise InputError("--feedback-every is a number of seconds > 0, e.g. 1")
         except InputError as exc:
             raise UsageError(str(exc)) from None
         from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
@@ -114,6 +160,10 @@ def run(args: argparse.Namespace) -> int:
             overlay=args.overlay,
             scale=args.scale,
             max_seconds=args.seconds,
+            still_seconds=args.still_seconds,
+            norm_range=norm_range,
+            osc_feedback=feedback,
+            feedback_every=args.feedback_every,
         )
         stats = Player(cal, args.videos, options).run()
     except PlayerError as exc:

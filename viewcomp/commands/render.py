@@ -71,8 +71,9 @@ def run(args: argparse.Namespace) -> int:
         **kwargs,
     )
     what = "identity (compensation off)" if args.identity else f"{args.method} method"
-    print(
-        f"wrote {args.output}: {stats.frames} frame(s), {what}, {args.backend} backend, "
-        f"{stats.fps:.1f} frames/s overall"
-    )
+    if is_image(Path(args.input)):  # one picture: a frame rate would mean nothing
+        done = f"an image, {what}, {args.backend} backend, in {stats.seconds:.1f} s"
+    else:
+        done = f"{stats.frames} frames, {what}, {args.backend} backend, {stats.fps:.1f} frames/s"
+    print(f"wrote {args.output}: {done}")
     return 0

@@ -1,0 +1,98 @@
+"""`viewcomp preview CALIB INPUT -o OUT.png`: what the audience will see, predicted."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "preview",
+        help="predict what a viewer at an angle sees on the calibrated screen (PNG)",
+        description="Predict, with the calibration's own model, what a viewer at the given "
+        "angle or eye position sees on the calibrated screen, and write it side by side with "
+        "what the white screen would show and with the uncompensated projection, labelled, "
+        "with each one's colour error against the white screen (mean CIEDE2000). A fourth "
+        "column shows what the projector itself shows. For a video, a contact sheet: one row "
+        "per sampled frame (each compensated as a still).",
+    )
+    p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
+    p.add_argument("input", help="image (.png, .jpg, ...) or video (anything FFmpeg reads)")
+    p.add_argument("-o", "--output", required=True, help="the picture to write (.png)")
+    add_eye_arguments(p, required=True)
+    add_tone_arguments(p, smooth=False)
+    p.add_argument("--frames", type=int, default=4, metavar="N",
+                   help="video: rows of the contact sheet, evenly spaced (default 4)")  # fmt: skip
+    p.set_defaults(run=run)
+
+
+def _video_frames(path: Path, grid: tuple[int, int], n: int) -> list[tuple[float, object]]:
+    """``n`` frames evenly spaced over the video, fitted to ``grid`` (W, H): (time, RGB)."""
+    from viewcomp.rt.media.frames import Planes, yuv420p_to_rgb
+    from viewcomp.rt.media.video import VideoReader
+
+    with VideoReader(path, fit=grid, audio="none") as reader:
+        duration = reader.info.duration
+        frames = reader.info.frames
+        planes = []
+        for item in reader:
+            if isinstance(item, Planes):
+                planes.append(item)
+                if frames is None and duration is None and len(planes) > 10_000:
+                    break
+    if not planes:
+        return []
+    idx = sorted({round(i * (len(planes) - 1) / max(n - 1, 1)) for i in range(n)})
+    return [(planes[i].time, yuv420p_to_rgb(planes[i])) for i in idx]
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.eval.preview import METHOD_NAMES, predict, preview_picture
+    from viewcomp.calib.fit.calibrate import Calibration
+    from viewcomp.calib.io.imageio import read_rgb8, write_png
+    from viewcomp.cli import UsageError
+    from viewcomp.rt.media.frames import fit_rgb
+    from viewcomp.rt.render.pipeline import is_image
+
+    src, out = Path(args.input), Path(args.output)
+    if out.suffix.lower() != ".png":
+        raise UsageError(f"the preview is a picture: give -o a .png file, got {out}")
+    if out.resolve() == src.resolve() or out.resolve() == Path(args.calib).resolve():
+        raise UsageError(f"-o {out} would overwrite an input; give another file name")
+    if args.frames < 1:
+        raise UsageError(f"--frames is at least 1, got {args.frames}")
+    cal = Calibration.load(args.calib)
+    eye = cal.eye(args.angle, parse_vec3(args.eye) if args.eye else None)
+    h, w = cal.shape
+    if is_image(src):
+        images = [("", fit_rgb(read_rgb8(src), w, h))]
+    else:
+        images = [(f"{t:.2f} s", rgb) for t, rgb in _video_frames(src, (w, h), args.frames)]
+        if not images:
+            raise UsageError(f"{src} has no video frames to preview; give another video")
+    lam = DEFAULT_LAMBDA if args.lam is None else args.lam
+    comp = Compensation(cal, args.method, lam)
+    angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
+    where = f"{angle:.0f} deg, eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m"
+    previews = []
+    for label, rgb in images:
+        p = predict(comp, np.ascontiguousarray(rgb, dtype=np.uint8), eye)
+        previews.append((f"seen at {where}" if not label else f"{label}, seen at {angle:.0f} deg",
+                         p))  # fmt: skip
+    title = (f"predicted by the calibration for a viewer at {where}; "
+             f"{METHOD_NAMES[args.method]}, mean CIEDE2000 vs the white screen")  # fmt: skip
+    write_png(out, preview_picture(previews, args.method, title))
+    unc = np.mean([p.de_uncompensated for _, p in previews])
+    com = np.mean([p.de_compensated for _, p in previews])
+    rows = f" (mean of {len(previews)} frames)" if len(previews) > 1 else ""
+    print(f"wrote {out}: predicted colour error at {angle:.0f} degrees{rows}: "
+          f"uncompensated dE {unc:.1f}, compensated ({METHOD_NAMES[args.method]}) "
+          f"dE {com:.1f}")  # fmt: skip
+    return 0
