@@ -19,6 +19,7 @@ COMMANDS = (
     "evaluate",
     "demo",
     "play",
+    "track",
     "export-mpv",
 )
 
@@ -32,6 +33,7 @@ A typical session:
   viewcomp calibrate caps -o screen.vcb       captures -> calibration bundle
   viewcomp render screen.vcb in.mp4 -o out.mp4 --angle 60
   viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
+  viewcomp track --camera 0 --rig screen.vcb | viewcomp play ...  follow the viewer's face
   viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
   viewcomp demo                               all of the above on a built-in example

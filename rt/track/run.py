@@ -1,0 +1,221 @@
+"""The tracking loop: frames -> faces -> eyes -> filter -> publishers, and its thread.
+
+:func:`build` turns a ``SRC`` and a rig into a ready :class:`Pipeline` (opening the source
+and checking the camera first, so that a bad ``SRC`` fails before anything runs);
+:meth:`Pipeline.run` processes frames until the source ends or a stop is asked;
+:class:`TrackerThread` runs it on a thread of its own for ``viewcomp play --track-camera``
+(it feeds the player's input queue; no GL is touched off the player's thread).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from viewcomp.calib.world.rig import Device, Rig, tracking_camera
+from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
+from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
+from viewcomp.rt.track.publish import Publisher
+from viewcomp.rt.track.source import ArraySource, Frame, FrameSource, SourceError
+from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
+
+EYE_LIMIT = 50.0  # metres: estimates farther than this (or behind the screen) are not viewers
+
+
+@dataclass
+class TrackOptions:
+    """Everything ``viewcomp track`` can set. Metres, seconds, Hz.
+
+    ``near``/``far``: the distances (along the camera's axis) at which faces are searched;
+    ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate.
+    """
+
+    face_width: float = FACE_WIDTH
+    eye_row: float = EYE_ROW
+    near: float = 0.5
+    far: float = 4.0
+    fps: float = 30.0
+    realtime: bool = False
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    detector: DetectorConfig | None = None
+
+
+@dataclass
+class FrameResult:
+    """What one frame gave: the raw eyes (N, 3), the published eyes (K, 3), and times:
+    ``captured`` (monotonic s, the frame handed over) and ``done`` (published)."""
+
+    index: int
+    t: float
+    raw: np.ndarray
+    eyes: np.ndarray
+    sent: bool
+    captured: float
+    done: float
+
+
+@dataclass
+class Stats:
+    """Totals of a run: frames, frames with a face, lines/messages sent, mean ms per frame."""
+
+    frames: int = 0
+    with_face: int = 0
+    sent: int = 0
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        ms = 1000.0 * self.seconds / max(self.frames, 1)
+        return (f"{self.frames} frames, a face in {self.with_face}, {self.sent} updates "
+                f"sent, {ms:.1f} ms per frame")  # fmt: skip
+
+
+class Pipeline:
+    """One source, one camera model, one detector, one tracker, any publishers."""
+
+    def __init__(
+        self,
+        source: FrameSource | ArraySource,
+        device: Device,
+        options: TrackOptions,
+        publishers: Sequence[Publisher] = (),
+    ) -> None:
+        self.source = source
+        self.options = options
+        try:
+            self.device = camera_for_frames(device, source.size)
+        except ValueError as exc:
+            raise SourceError(f"{source.src}: {exc}") from None
+        lo, hi = size_range(self.device.focal(), options.face_width, options.near, options.far)
+        config = options.detector or DetectorConfig()
+        config.min_px, config.max_px = lo, hi
+        self.detector = FaceDetector(config)
+        self.tracker = EyeTracker(options.tracker)
+        self.publishers = list(publishers)
+        self.stats = Stats()
+
+    def step(self, frame: Frame) -> FrameResult:
+        """Detect, estimate, filter and publish one frame."""
+        boxes = self.detector.detect(frame.image, self.tracker.hints())
+        raw = eyes_from_boxes(self.device, boxes, self.options.face_width, self.options.eye_row)
+        ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
+        raw, boxes = raw[ok], boxes[ok]
+        eyes = self.tracker.update(raw, boxes, frame.t)
+        sent = False
+        for p in self.publishers:
+            sent = p.publish(eyes) or sent
+        done = time.monotonic()
+        self.stats.frames += 1
+        self.stats.with_face += int(len(raw) > 0)
+        self.stats.sent += int(sent)
+        self.stats.seconds += done - frame.captured
+        return FrameResult(frame.index, frame.t, raw, eyes, sent, frame.captured, done)
+
+    def run(
+        self,
+        stop: threading.Event | None = None,
+        max_seconds: float | None = None,
+    ) -> Stats:
+        """Process frames until the source ends, ``stop`` is set or ``max_seconds`` (of
+        frame time) have passed."""
+        for frame in self.source:
+            if stop is not None and stop.is_set():
+                break
+            if max_seconds is not None and frame.t > max_seconds:
+                break
+            self.step(frame)
+        return self.stats
+
+    def close(self) -> None:
+        """Release the source and the publishers."""
+        self.source.close()
+        for p in self.publishers:
+            p.close()
+
+
+def build(
+    src: str,
+    rig: Rig,
+    options: TrackOptions,
+    publishers: Sequence[Publisher] = (),
+) -> Pipeline:
+    """A pipeline for camera ``src`` whose pose and intrinsics are the rig's tracking camera
+    (:func:`viewcomp.calib.world.rig.tracking_camera`).
+
+    Raises:
+        RigError: the rig's tracking camera faces the screen.
+        SourceError: ``src`` cannot be read, or its frames do not fit the camera's aspect.
+    """
+    device = tracking_camera(rig)
+    source = FrameSource(src, fps=options.fps, realtime=options.realtime,
+                         size=device.resolution)  # fmt: skip
+    try:
+        return Pipeline(source, device, options, publishers)
+    except BaseException:
+        source.close()
+        raise
+
+
+class TrackerThread:
+    """A pipeline on its own thread, publishing into a player's input hub.
+
+    ``start(hub)`` adds a :class:`viewcomp.rt.track.publish.HubPublisher` and starts the
+    thread; ``stop()`` ends it and releases the source. A source that ends (a file) ends the
+    thread; the player goes on with the last eye.
+    """
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.pipeline = pipeline
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-track", daemon=True)
+        self.error: BaseException | None = None
+
+    def start(self, hub: object) -> TrackerThread:
+        """Publish into ``hub`` (an InputHub) and start."""
+        from viewcomp.rt.track.publish import HubPublisher
+
+        self.pipeline.publishers.append(HubPublisher(hub))
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        try:
+            self.pipeline.run(self._stop)
+        except Exception as exc:  # reported by the player's log through stop()
+            self.error = exc
+
+    def stop(self) -> None:
+        """Stop the thread and release the camera."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.pipeline.close()
+
+
+def load_tracking_rig(path: str) -> Rig:
+    """The rig of a ``rig.toml``, of a capture set (a folder with one) or of a calibration
+    bundle (the rig it was calibrated with).
+
+    Raises:
+        RigError, BundleError: the file cannot be read; the message says why.
+    """
+    import tomllib
+    from pathlib import Path
+
+    from viewcomp.calib.world.rig import load_rig, rig_from_dict
+
+    p = Path(path)
+    if p.is_dir():
+        return load_rig(p / "rig.toml")
+    if p.suffix.lower() == ".toml" or not p.exists():
+        return load_rig(p)
+    from viewcomp.calib.io.bundle import BundleError, load_bundle
+
+    _, meta = load_bundle(p)
+    try:
+        return rig_from_dict(tomllib.loads(meta["rig"]), source=f"{p} (rig)")
+    except (KeyError, TypeError, tomllib.TOMLDecodeError) as exc:
+        raise BundleError(f"{p}: the bundle holds no readable rig ({exc}); recalibrate") from None
