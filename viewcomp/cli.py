@@ -72,8 +72,9 @@ def _known_errors() -> tuple[type[BaseException], ...]:
         from viewcomp.rt.media.video import VideoError
         from viewcomp.rt.render.pipeline import ImageError
         from viewcomp.rt.render.tracks import TrackError
+        from viewcomp.rt.track.source import SourceError
 
-        errors += [GLUnavailable, ImageError, TrackError, VideoError]
+        errors += [GLUnavailable, ImageError, TrackError, VideoError, SourceError]
     except ImportError:  # the run-time part is optional for calibration-only installs
         pass
     return tuple(errors)

@@ -187,6 +187,7 @@ class PlayerOptions:
     scale: str = "auto"
     max_seconds: float | None = None
     title: str = "viewcomp"
+    inputs: tuple[Any, ...] = ()  # more eye sources: start(hub) -> an object with stop()
 
 
 @dataclass
@@ -509,6 +510,8 @@ class Player:
             log.info("listening for OSC on %s:%d", *listener.address)
         if o.stdin_fd is not None:
             self._threads.append(LineReader(self.hub, o.stdin_fd).start())
+        for source in o.inputs:  # e.g. the face tracker of --track-camera
+            self._threads.append(source.start(self.hub))
         if o.audio:
             out = open_alsa(o.audio_device)
             if out is not None:

@@ -8,10 +8,16 @@ OpenCV on 24x24 windows); ``cv2.CascadeClassifier`` runs it once a misspelt tag 
 copy (``featuhreParams``) is corrected, in memory. LBP cascades are integer features, about
 as accurate on frontal faces as the Haar ones and several times faster.
 
+False faces: a box needs ``min_neighbors`` overlapping hits, local contrast
+(:func:`detail_of`: LBP ignores contrast, so noise on a flat wall can look like a face) and,
+in a colour frame, a middle that is mostly skin-toned (:func:`skin_share`).
+
 Speed: the search is limited to the face sizes that the distance range [near, far] allows
 (:func:`size_range`), and once a face is found the next frames search only around it
 (a window of ``roi_margin`` face widths each side, sizes within a factor ``roi_scale``), with
-a full search every ``full_every`` frames for newcomers.
+a full search every ``full_every`` frames for newcomers. Every box is then searched again
+in its window on a few shifted size grids and the median taken (:meth:`FaceDetector.refine`),
+which makes the size, hence the distance, finer than the cascade's size steps.
 """
 
 from __future__ import annotations
@@ -70,17 +76,22 @@ class DetectorConfig:
     widths searched, pixels; ``full_every``: frames between full-frame searches while faces
     are tracked (1: always full); ``roi_margin``: the window around a tracked face, in face
     widths each side; ``roi_scale``: sizes searched there, a factor either way; ``dither``:
-    searches of that window on shifted size grids (:meth:`FaceDetector.refine`).
+    searches of that window on shifted size grids (:meth:`FaceDetector.refine`); ``skin``:
+    the share (0..1) of skin-toned pixels a colour box needs (:func:`skin_share`; 0: no
+    check); ``detail``: the local contrast a box needs, grey levels (:func:`detail_of`; 0: no
+    check).
     """
 
     scale_factor: float = 1.1
-    min_neighbors: int = 3
+    min_neighbors: int = 4
     min_px: int = MIN_FACE_PX
     max_px: int = 400
     full_every: int = 15
     roi_margin: float = 1.0
     roi_scale: float = 1.4
     dither: int = 4
+    skin: float = 0.5
+    detail: float = 8.0
 
 
 class FaceDetector:
@@ -92,21 +103,23 @@ class FaceDetector:
         self._frames = 0
         self.full_searches = 0
 
-    def _search(self, gray: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    def _search(self, gray: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+        """Boxes (N, 4) and their overlapping-hit counts (N,) for widths lo..hi pixels."""
         c = self.config
         lo_i = max(MIN_FACE_PX, int(lo))
         hi_i = max(lo_i + 1, int(np.ceil(hi)))
-        found = self.cascade.detectMultiScale(
+        found, hits = self.cascade.detectMultiScale2(
             gray,
             scaleFactor=c.scale_factor,
             minNeighbors=c.min_neighbors,
             minSize=(lo_i, lo_i),
             maxSize=(hi_i, hi_i),
         )
-        return np.asarray(found, np.float64).reshape(-1, 4)
+        return np.asarray(found, np.float64).reshape(-1, 4), np.asarray(hits, np.float64).ravel()
 
-    def refine(self, gray: np.ndarray, box: np.ndarray) -> np.ndarray | None:
-        """The face near ``box`` (x, y, w, h), searched again in a window around it, or None.
+    def refine(self, gray: np.ndarray, box: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """The face near ``box`` (x, y, w, h), searched again in a window around it, and its
+        hit count summed over the searches; None when it is not found again.
 
         The window is searched ``dither`` times, each resized by scale_factor^(k / dither):
         the cascade only tries sizes on a geometric grid, and the median over shifted grids
@@ -122,21 +135,23 @@ class FaceDetector:
             return None
         roi = gray[y0:y1, x0:x1]
         centre = np.array([x - x0 + bw / 2, y - y0 + bw / 2])
-        found = []
+        found, score = [], 0.0
         for k in range(max(1, c.dither)):
             r = c.scale_factor ** (k / max(1, c.dither))
             img = roi if k == 0 else cv2.resize(roi, None, fx=r, fy=r)
             lo = max(c.min_px * r, bw * r / c.roi_scale)
             hi = min(c.max_px * r, bw * r * c.roi_scale)
-            b = self._search(img, lo, hi) / r
+            b, hits = self._search(img, lo, hi)
             if len(b):
-                off = b[:, :2] + b[:, 2:] / 2 - centre
-                nearest = b[np.argmin(np.hypot(off[:, 0], off[:, 1]))]
-                if np.hypot(*(nearest[:2] + nearest[2:] / 2 - centre)) < bw:
-                    found.append(nearest)
+                b = b / r
+                off = np.hypot(*(b[:, :2] + b[:, 2:] / 2 - centre).T)
+                i = int(np.argmin(off))
+                if off[i] < bw:
+                    found.append(b[i])
+                    score += float(hits[i])
         if not found:
             return None
-        return np.median(np.asarray(found), axis=0) + np.array([x0, y0, 0.0, 0.0])
+        return np.median(np.asarray(found), axis=0) + np.array([x0, y0, 0.0, 0.0]), score
 
     def detect(self, frame: np.ndarray, hints: np.ndarray | None = None) -> np.ndarray:
         """Faces in ``frame``.
@@ -144,33 +159,100 @@ class FaceDetector:
         Args:
             frame: (h, w, 3) uint8 BGR (OpenCV's order) or (h, w) uint8 gray.
             hints: (K, 4) boxes (x, y, w, h) where faces were last seen, or None; with hints
-                only those neighbourhoods are searched, except every ``full_every``-th frame
-                (and every frame without hints), when the whole frame is.
+                only those neighbourhoods are searched, except every ``full_every``-th frame,
+                every frame without hints and a frame where a hinted face is not found
+                again, when the whole frame is.
 
         Returns:
-            (N, 4) float64 boxes (x, y, w, h), pixels, top-left corner; may be empty. Every
-            box is refined (:meth:`refine`), so a face's size does not depend on which kind
-            of search found it.
+            (N, 4) float64 boxes (x, y, w, h), pixels, top-left corner, strongest first; may
+            be empty. Every box is refined (:meth:`refine`), so a face's size does not depend
+            on which kind of search found it; of boxes that overlap (one's centre inside the
+            other) the one with more cascade hits is kept.
         """
         gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
         c = self.config
         self._frames += 1
         candidates = np.zeros((0, 4)) if hints is None else np.asarray(hints, np.float64)
         candidates = candidates.reshape(-1, 4)
-        if len(candidates) == 0 or c.full_every <= 1 or self._frames % c.full_every == 0:
-            self.full_searches += 1
-            full = self._search(gray, c.min_px, c.max_px)
-            candidates = _dedupe(np.concatenate([candidates, full]))
-        out = [self.refine(gray, b) for b in candidates]
-        return _dedupe(np.asarray([b for b in out if b is not None], np.float64).reshape(-1, 4))
+        full = len(candidates) == 0 or c.full_every <= 1 or self._frames % c.full_every == 0
+        boxes: list[np.ndarray] = []
+        scores: list[float] = []
+        while True:
+            if full:
+                self.full_searches += 1
+                candidates = np.concatenate([candidates, self._search(gray, c.min_px, c.max_px)[0]])
+            lost = False
+            boxes, scores = [], []
+            for b in candidates:
+                r = self.refine(gray, b)
+                if r is None:
+                    lost = True
+                    continue
+                if c.skin > 0 and frame.ndim == 3 and skin_share(frame, r[0]) < c.skin:
+                    continue
+                if c.detail > 0 and detail_of(gray, r[0]) < c.detail:
+                    continue
+                boxes.append(r[0])
+                scores.append(r[1])
+            if full or not lost:
+                break
+            full = True  # a tracked face was not found near where it was: search everywhere
+        return _dedupe(np.asarray(boxes, np.float64).reshape(-1, 4), np.asarray(scores))
 
 
-def _dedupe(boxes: np.ndarray) -> np.ndarray:
-    """Drop boxes whose centre lies inside an earlier, larger-or-equal box (overlapping
-    searches find a face twice); the larger box is kept."""
+def _dedupe(boxes: np.ndarray, scores: np.ndarray) -> np.ndarray:
+    """Boxes by decreasing score, without those whose centre lies inside a box kept before
+    (the same face found twice, or a larger false box around a face)."""
     keep: list[np.ndarray] = []
-    for b in boxes[np.argsort(-boxes[:, 2], kind="stable")] if len(boxes) else boxes:
+    for i in np.argsort(-scores, kind="stable"):
+        b = boxes[i]
         cx, cy = b[0] + b[2] / 2, b[1] + b[3] / 2
-        if not any(k[0] <= cx <= k[0] + k[2] and k[1] <= cy <= k[1] + k[3] for k in keep):
+        inside = any(k[0] <= cx <= k[0] + k[2] and k[1] <= cy <= k[1] + k[3] for k in keep)
+        contains = any(b[0] <= k[0] + k[2] / 2 <= b[0] + b[2] and
+                       b[1] <= k[1] + k[3] / 2 <= b[1] + b[3] for k in keep)  # fmt: skip
+        if not (inside or contains):
             keep.append(b)
     return np.asarray(keep, np.float64).reshape(-1, 4)
+
+
+def detail_of(gray: np.ndarray, box: np.ndarray) -> float:
+    """Local contrast in ``box`` (x, y, w, h) of a uint8 ``gray`` frame, in grey levels: the
+    box resampled to the cascade's 24x24 (area average), minus its Gaussian blur (sigma 3),
+    the standard deviation over the middle 16x16.
+
+    LBP features compare neighbouring pixels without their contrast, so sensor noise on a
+    flat, smoothly lit wall can pass the cascade; a face has eyes, brows and a mouth (25-45
+    levels on the simulated walk at 1..3 m), a flat wall about 1.
+    """
+    x, y, w, h = (int(np.rint(v)) for v in box)
+    crop = gray[max(0, y) : max(0, y + h), max(0, x) : max(0, x + w)]
+    if crop.shape[0] < 4 or crop.shape[1] < 4:
+        return 0.0
+    small = cv2.resize(crop.astype(np.float32), (24, 24), interpolation=cv2.INTER_AREA)
+    high = small - cv2.GaussianBlur(small, (0, 0), 3.0)
+    return float(high[4:20, 4:20].std())
+
+
+def skin_share(frame: np.ndarray, box: np.ndarray) -> float:
+    """The share (0..1) of skin-toned pixels in the middle half of ``box`` (x, y, w, h) of a
+    BGR uint8 ``frame``: YCrCb with 133 <= Cr <= 173 and 77 <= Cb <= 127 (Chai and Ngan,
+    1999). A grey middle (a monochrome or infrared camera) counts as skin: 1.0.
+
+    The cascade alone also finds "faces" in wallpaper and shelves; those rarely have skin's
+    chroma, so the check removes most false viewers at the cost of nothing on real faces.
+    """
+    x, y, w, h = (int(np.rint(v)) for v in box)
+    crop = frame[
+        max(0, y + h // 4) : max(0, y + 3 * h // 4), max(0, x + w // 4) : max(0, x + 3 * w // 4)
+    ]
+    if crop.size == 0:
+        return 0.0
+    chans = crop.reshape(-1, 3).astype(np.int16)
+    if (
+        int(np.abs(chans[:, 0] - chans[:, 1]).max()) <= 2
+        and int(np.abs(chans[:, 1] - chans[:, 2]).max()) <= 2
+    ):
+        return 1.0
+    ycc = cv2.cvtColor(crop, cv2.COLOR_BGR2YCrCb)
+    cr, cb = ycc[..., 1], ycc[..., 2]
+    return float(np.mean((cr >= 133) & (cr <= 173) & (cb >= 77) & (cb <= 127)))

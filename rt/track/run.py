@@ -219,3 +219,11 @@ def load_tracking_rig(path: str) -> Rig:
         return rig_from_dict(tomllib.loads(meta["rig"]), source=f"{p} (rig)")
     except (KeyError, TypeError, tomllib.TOMLDecodeError) as exc:
         raise BundleError(f"{p}: the bundle holds no readable rig ({exc}); recalibrate") from None
+
+
+def default_options(rig: Rig) -> TrackOptions:
+    """``viewcomp track``'s defaults for ``rig``: the default eye is its [viewer] at 90
+    degrees."""
+    eye = rig.viewer.eye(90.0)
+    tracker = TrackerConfig(default_eye=(float(eye[0]), float(eye[1]), float(eye[2])))
+    return TrackOptions(tracker=tracker)

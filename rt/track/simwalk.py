@@ -156,9 +156,11 @@ def write_walk(
     seconds: float = 12.0,
     fps: float = 30.0,
     seed: int = 0,
+    frames: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Write the walk of :func:`walk` seen by :func:`walk_camera` into ``folder`` (created):
-    ``frame_00000.png`` ..., ``truth.csv`` (``seconds,x,y,z``) and ``rig.toml``.
+    ``frame_00000.png`` ..., ``truth.csv`` (``seconds,x,y,z``) and ``rig.toml``; only its
+    first ``frames`` frames when given.
 
     Returns:
         times (n,) and eyes (n, 3) as :func:`walk` gives them.
@@ -167,6 +169,7 @@ def write_walk(
     out.mkdir(parents=True, exist_ok=True)
     device = walk_camera()
     times, eyes = walk(seconds, fps)
+    times, eyes = times[:frames], eyes[:frames]
     for i, frame in enumerate(render_walk(device, eyes, seed)):
         with atomic_path(out / f"frame_{i:05d}.png") as tmp:
             if not cv2.imwrite(str(tmp), frame):

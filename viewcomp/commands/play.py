@@ -20,6 +20,7 @@ live angle input:
   mouse     drag with the left button: the window's width is 180 degrees
   OSC/UDP   /viewcomp/angle f (degrees), /viewcomp/eye f f f (metres) to --osc HOST:PORT
   stdin     lines `angle 60` or `eye 0.1 0.0 0.5`
+  camera    --track-camera SRC: the nearest face's eye (defaults of `viewcomp track`)
 Moves are smoothed (--eye-smooth); malformed messages are logged and dropped.
 """
 
@@ -46,6 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--osc", metavar="HOST:PORT",
                    help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
     p.add_argument("--no-stdin", action="store_true", help="do not read commands from stdin")
+    p.add_argument("--track-camera", metavar="SRC",
+                   help="follow the nearest face in camera SRC (see `viewcomp track`)")  # fmt: skip
     add_tone_arguments(p)
     p.add_argument("--eye-smooth", type=float, default=0.25,
                    help="eye smoothing time constant, s (default 0.25; 0: instant)")  # fmt: skip
@@ -68,6 +71,15 @@ def _stdin_fd() -> int | None:
         return sys.stdin.fileno()
     except (AttributeError, OSError, ValueError):
         return None
+
+
+def _tracker(src: str | None, rig: object) -> tuple[object, ...]:
+    """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early)."""
+    if not src:
+        return ()
+    from viewcomp.rt.track.run import TrackerThread, build, default_options
+
+    return (TrackerThread(build(src, rig, default_options(rig))),)  # type: ignore[arg-type]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -114,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
             overlay=args.overlay,
             scale=args.scale,
             max_seconds=args.seconds,
+            inputs=_tracker(args.track_camera, cal.rig),
         )
         stats = Player(cal, args.videos, options).run()
     except PlayerError as exc:
