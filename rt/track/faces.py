@@ -71,19 +71,24 @@ def size_range(focal_px: float, face_width: float, near: float, far: float) -> t
 class DetectorConfig:
     """How to search.
 
-    ``scale_factor`` (> 1): step between searched face sizes; ``min_neighbors``: overlapping
-    hits a face needs (higher: fewer false faces, more misses); ``min_px``/``max_px``: box
-    widths searched, pixels; ``full_every``: frames between full-frame searches while faces
-    are tracked (1: always full); ``roi_margin``: the window around a tracked face, in face
-    widths each side; ``roi_scale``: sizes searched there, a factor either way; ``dither``:
-    searches of that window on shifted size grids (:meth:`FaceDetector.refine`); ``skin``:
-    the share (0..1) of skin-toned pixels a colour box needs (:func:`skin_share`; 0: no
-    check); ``detail``: the local contrast a box needs, grey levels (:func:`detail_of`; 0: no
-    check).
+    ``scale_factor`` (> 1): step between searched face sizes, and ``min_neighbors``: the
+    overlapping hits a face needs (higher: fewer false faces, more misses), where a face is
+    looked for again (:meth:`FaceDetector.refine`); ``full_scale_factor`` and
+    ``full_min_neighbors``: the same for the full-frame search, which only proposes
+    candidates for the refinement (coarser steps and fewer hits: fast, and a missed far face
+    costs more than a false candidate). ``min_px``/``max_px``: box widths searched, pixels;
+    ``full_every``: frames between full-frame searches while faces are tracked (1: always
+    full); ``roi_margin``: the window around a tracked face, in face widths each side;
+    ``roi_scale``: sizes searched there, a factor either way; ``dither``: searches of that
+    window on shifted size grids; ``skin``: the share (0..1) of skin-toned pixels a colour
+    box needs (:func:`skin_share`; 0: no check); ``detail``: the local contrast a box needs,
+    grey levels (:func:`detail_of`; 0: no check).
     """
 
     scale_factor: float = 1.1
-    min_neighbors: int = 4
+    min_neighbors: int = 3
+    full_scale_factor: float = 1.2
+    full_min_neighbors: int = 2
     min_px: int = MIN_FACE_PX
     max_px: int = 400
     full_every: int = 15
@@ -103,15 +108,19 @@ class FaceDetector:
         self._frames = 0
         self.full_searches = 0
 
-    def _search(self, gray: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
-        """Boxes (N, 4) and their overlapping-hit counts (N,) for widths lo..hi pixels."""
+    def _search(
+        self, gray: np.ndarray, lo: float, hi: float, coarse: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Boxes (N, 4) and their overlapping-hit counts (N,) for widths lo..hi pixels;
+        ``coarse``: the full-frame search's settings (``full_scale_factor``,
+        ``full_min_neighbors``)."""
         c = self.config
         lo_i = max(MIN_FACE_PX, int(lo))
         hi_i = max(lo_i + 1, int(np.ceil(hi)))
         found, hits = self.cascade.detectMultiScale2(
             gray,
-            scaleFactor=c.scale_factor,
-            minNeighbors=c.min_neighbors,
+            scaleFactor=c.full_scale_factor if coarse else c.scale_factor,
+            minNeighbors=c.full_min_neighbors if coarse else c.min_neighbors,
             minSize=(lo_i, lo_i),
             maxSize=(hi_i, hi_i),
         )
@@ -180,7 +189,9 @@ class FaceDetector:
         while True:
             if full:
                 self.full_searches += 1
-                candidates = np.concatenate([candidates, self._search(gray, c.min_px, c.max_px)[0]])
+                candidates = np.concatenate(
+                    [candidates, self._search(gray, c.min_px, c.max_px, coarse=True)[0]]
+                )
             lost = False
             boxes, scores = [], []
             for b in candidates:

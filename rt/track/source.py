@@ -117,9 +117,13 @@ class FrameSource:
             kind = "no camera with this index can be opened" if isinstance(what, int) else (
                 "not a video OpenCV can open")  # fmt: skip
             raise SourceError(f"{what}: {kind}; {_hint()}")
-        if size is not None and isinstance(what, int):
-            cap.set(cv2.CAP_PROP_FRAME_WIDTH, size[0])
-            cap.set(cv2.CAP_PROP_FRAME_HEIGHT, size[1])
+        if isinstance(what, int):
+            # one buffered frame: a reader that is busy gets the newest frame, not a queue
+            # of old ones (latency over completeness); not every driver honours it
+            cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)
+            if size is not None:
+                cap.set(cv2.CAP_PROP_FRAME_WIDTH, size[0])
+                cap.set(cv2.CAP_PROP_FRAME_HEIGHT, size[1])
         ok, image = cap.read()
         if not ok or image is None:
             cap.release()
