@@ -378,3 +378,60 @@ def test_tracker_section_is_validated():
     d["tracker"]["resolution"] = [1280]
     with pytest.raises(RigError, match=r"\[tracker\] resolution must be"):
         rig_from_dict(d)
+
+
+# ----------------------------------------------------------------------- the player
+@pytest.mark.gl
+@pytest.mark.slow
+@pytest.mark.usefixtures("session_gl_current")
+def test_player_follows_the_tracker(tmp_path: Path):
+    """play --track-camera: the tracker's thread feeds the player's input queue; the eye the
+    player draws with is the one the tracker published last."""
+    from viewcomp.calib.sim.testing import small_calibration
+    from viewcomp.rt.play.player import Player, PlayerOptions
+    from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
+    from viewcomp.rt.testing import make_test_video
+    from viewcomp.rt.track.run import TrackerThread
+    from viewcomp.rt.track.source import FrameSource
+
+    if not xvfb_available():
+        pytest.skip("Xvfb is not installed (Debian package xvfb)")
+    write_walk(tmp_path / "walk", fps=10.0, frames=15)
+    clip = tmp_path / "clip.mp4"
+    make_test_video(str(clip), 128, 64, seconds=4.0, rate=30, audio=False)
+    cal = small_calibration(64, 32, screen="magenta")
+    source = FrameSource(str(tmp_path / "walk"), fps=10.0, realtime=True)
+    tracker = TrackerThread(Pipeline(source, walk_camera(), TrackOptions()))
+    published = LinePublisher(__import__("io").StringIO())
+    tracker.pipeline.publishers.append(published)
+    drawn: list[tuple[float, ...]] = []
+
+    def on_frame(player, f) -> None:
+        drawn.append(tuple(f.record.eye))
+        if not tracker._thread.is_alive() and len(drawn) > 5:  # the sequence has ended
+            player.stop()
+
+    opts = PlayerOptions(windowed=True, audio=False, stdin_fd=None, max_seconds=20.0,
+                         eye_tau=0.0, loop=True, inputs=(tracker,))  # fmt: skip
+    with Xvfb((640, 360)):
+        stats = Player(cal, [clip], opts, on_frame=on_frame).run()
+    assert tracker.error is None
+    assert stats.inputs["track"].applied == published.sent >= 5
+    last = parse_line(published.stream.getvalue().splitlines()[-1])
+    np.testing.assert_allclose(drawn[-1], last.eye, atol=1e-9)  # type: ignore[union-attr]
+
+
+def test_play_with_a_bad_track_camera_is_exit_2(tmp_path: Path, capsys):
+    from viewcomp.calib.sim.testing import small_calibration
+
+    cal = small_calibration(64, 32, screen="magenta")
+    plain, tracked = tmp_path / "plain.vcb", tmp_path / "tracked.vcb"
+    cal.save(plain)  # its rig has no [tracker], and its camera faces the screen
+    replace(cal, rig=replace(cal.rig, tracker=walk_camera())).save(tracked)
+    for bundle, says in ((plain, "add a [tracker] section"),
+                         (tracked, "no such camera, file or folder")):  # fmt: skip
+        code = main(["play", str(bundle), str(tmp_path / "clip.mp4"), "--track-camera",
+                     str(tmp_path / "nothing")])  # fmt: skip
+        assert code == 2
+        err = capsys.readouterr().err
+        assert err.startswith("viewcomp play: error: ") and says in err
