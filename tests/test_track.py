@@ -135,11 +135,11 @@ def _errors(dev, est: np.ndarray, truth: np.ndarray) -> dict[str, np.ndarray]:
 @pytest.mark.slow
 def test_walk_is_tracked_within_the_tolerances():
     """The issue's criterion on a simulated walk (1..3 m, 90 +- 40 degrees, 12 s at 30 fps):
-    the eye within 10 cm across the line of sight and 20 % in distance in 95 % of frames.
+    the eye within 10 cm in world x and y and within 20 % in distance in 95 % of frames.
 
-    World y is within 10 cm as well. World x is printed, not asserted: at 3 m and 40 degrees
-    a range error of 10 % (the cascade's box size) moves the eye 15 cm in x along the line of
-    sight; docs/INTERFACES.md ("viewcomp track") gives the measured figures.
+    Also within 10 cm across the camera's line of sight. Without the face templates (the
+    cascade's box alone) world x misses in about a quarter of the frames: at 3 m and 40
+    degrees a size error of 9 % moves the eye 15 cm along the line of sight, mostly in x.
     """
     dev = walk_camera()
     _, truth = walk(12.0, 30.0)
@@ -152,15 +152,39 @@ def test_walk_is_tracked_within_the_tolerances():
         "range<=20%": float(np.mean(e["range"] <= 0.20)),
         "y<=10cm": float(np.mean(e["y"] <= 0.10)),
         "x<=10cm": float(np.mean(e["x"] <= 0.10)),
-        "all three (across, range, y)": float(
-            np.mean((e["across"] <= 0.1) & (e["range"] <= 0.2) & (e["y"] <= 0.1))
-        ),
+        "x, y and range": float(np.mean((e["x"] <= 0.1) & (e["y"] <= 0.1) & (e["range"] <= 0.2))),
     }
     print("\nwalk:", {k: f"{v:.1%}" for k, v in share.items()},
           f"p95 across {np.percentile(e['across'], 95):.3f} m, range "
           f"{np.percentile(e['range'], 95):.1%}, x {np.percentile(e['x'], 95):.3f} m")  # fmt: skip
     assert pipeline.stats.with_face == len(frames)
-    assert share["all three (across, range, y)"] >= 0.95
+    assert share["x, y and range"] >= 0.95
+    assert share["across<=10cm"] >= 0.95
+
+
+def test_templates_size_a_face_finer_than_the_cascade():
+    """A face first seen near, then at 2.6 m and 40 degrees aside: its template gives the
+    width within 3 % of the truth; it finds nothing where the face is not."""
+    import cv2
+
+    from viewcomp.rt.track.faces import FaceDetector
+    from viewcomp.rt.track.scale import FaceTemplate, ScaleConfig
+
+    dev = walk_camera()
+    near = np.array([[0.2, 0.15, 1.1]])
+    th = math.radians(130)
+    far = np.array([[2.6 * math.cos(th), 0.15, 2.6 * math.sin(th)]])
+    frames = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in render_walk(dev, np.stack([near, far]))]
+    det = FaceDetector()
+    box_near = det.detect(frames[0])[0]
+    template = FaceTemplate(frames[0], box_near)
+    truth = boxes_from_eyes(dev, far)[0]
+    box_far = det.detect(frames[1])[0]
+    found = template.measure(frames[1], box_far, ScaleConfig())
+    assert found is not None
+    ratio_near = box_near[2] / boxes_from_eyes(dev, near)[0, 2]
+    assert found[0][2] / truth[2] == pytest.approx(ratio_near, rel=0.03)
+    assert template.measure(frames[1], box_far + np.array([300.0, 0, 0, 0]), ScaleConfig()) is None
 
 
 def test_faces_are_found_near_and_far():

@@ -14,12 +14,14 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from viewcomp.calib.world.rig import Device, Rig, tracking_camera
 from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
 from viewcomp.rt.track.publish import Publisher
+from viewcomp.rt.track.scale import FaceTemplate, ScaleConfig
 from viewcomp.rt.track.source import ArraySource, Frame, FrameSource, SourceError
 from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
 
@@ -31,7 +33,9 @@ class TrackOptions:
     """Everything ``viewcomp track`` can set. Metres, seconds, Hz.
 
     ``near``/``far``: the distances (along the camera's axis) at which faces are searched;
-    ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate.
+    ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate;
+    ``templates``: size tracked faces by their own near view (:mod:`viewcomp.rt.track.scale`)
+    rather than by the cascade's box alone.
     """
 
     face_width: float = FACE_WIDTH
@@ -42,6 +46,8 @@ class TrackOptions:
     realtime: bool = False
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     detector: DetectorConfig | None = None
+    templates: bool = True
+    scale: ScaleConfig = field(default_factory=ScaleConfig)
 
 
 @dataclass
@@ -97,13 +103,46 @@ class Pipeline:
         self.publishers = list(publishers)
         self.stats = Stats()
 
+    def _sized(self, gray: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """``boxes`` with each tracked face's size and place from its template, where it has
+        one and the template finds it (:mod:`viewcomp.rt.track.scale`)."""
+        out = boxes.copy()
+        for tr in self.tracker.tracks:
+            if tr.template is None or len(boxes) == 0:
+                continue
+            i = int(np.argmax(_overlap(tr.box, boxes)))
+            if _overlap(tr.box, boxes)[i] < 0.3:
+                continue
+            found = tr.template.measure(gray, boxes[i], self.options.scale)
+            if found is not None:
+                out[i] = found[0]
+        return out
+
+    def _keep_templates(self, gray: np.ndarray, boxes: np.ndarray, t: float) -> None:
+        """Take a face's template when it is seen large enough, and larger than before."""
+        anchor = self.options.scale.anchor_px
+        for tr in self.tracker.tracks:
+            if tr.seen != t or not 0 <= tr.index < len(boxes):
+                continue
+            b = boxes[tr.index]
+            if (
+                b[2] >= anchor
+                and FaceTemplate.fits(gray, b)
+                and (tr.template is None or b[2] > 1.05 * tr.template.width)
+            ):
+                tr.template = FaceTemplate(gray, b)
+
     def step(self, frame: Frame) -> FrameResult:
-        """Detect, estimate, filter and publish one frame."""
+        """Detect, size, estimate, filter and publish one frame."""
         boxes = self.detector.detect(frame.image, self.tracker.hints())
-        raw = eyes_from_boxes(self.device, boxes, self.options.face_width, self.options.eye_row)
+        gray = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
+        sized = self._sized(gray, boxes) if self.options.templates else boxes
+        raw = eyes_from_boxes(self.device, sized, self.options.face_width, self.options.eye_row)
         ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
-        raw, boxes = raw[ok], boxes[ok]
-        eyes = self.tracker.update(raw, boxes, frame.t)
+        raw, boxes, sized = raw[ok], boxes[ok], sized[ok]
+        eyes = self.tracker.update(raw, sized, frame.t)
+        if self.options.templates:
+            self._keep_templates(gray, boxes, frame.t)
         sent = False
         for p in self.publishers:
             sent = p.publish(eyes) or sent
@@ -134,6 +173,19 @@ class Pipeline:
         self.source.close()
         for p in self.publishers:
             p.close()
+
+
+def _overlap(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Intersection over union (0..1) of ``box`` (4,) with each of ``boxes`` (N, 4)."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    ix = np.clip(
+        np.minimum(box[0] + box[2], b[:, 0] + b[:, 2]) - np.maximum(box[0], b[:, 0]), 0, None
+    )
+    iy = np.clip(
+        np.minimum(box[1] + box[3], b[:, 1] + b[:, 3]) - np.maximum(box[1], b[:, 1]), 0, None
+    )
+    inter = ix * iy
+    return inter / (box[2] * box[3] + b[:, 2] * b[:, 3] - inter)
 
 
 def build(

@@ -22,6 +22,7 @@ Times are seconds on any clock that increases (a camera's frame times).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -50,13 +51,17 @@ class TrackerConfig:
 @dataclass
 class Track:
     """One viewer: ``eye`` (3,) the filtered eye, ``box`` (4,) the last face box (pixels),
-    ``seen`` the time of the last detection, ``id`` a number unique in a tracker."""
+    ``seen`` the time of the last detection, ``id`` a number unique in a tracker, ``index``
+    the detection it was last given (its row in that frame's eyes), ``template`` whatever
+    the caller keeps per viewer (the pipeline: its face template, or None)."""
 
     id: int
     filter: OneEuroFilter
     eye: np.ndarray
     box: np.ndarray
     seen: float
+    index: int = -1
+    template: Any = None
 
 
 def _smoothstep(s: float) -> float:
@@ -105,10 +110,11 @@ class EyeTracker:
             tr.eye = tr.filter(eyes[i], t)
             tr.box = boxes[i].copy()
             tr.seen = t
+            tr.index = i
         for i in free:
             if i not in used_e:
                 f = OneEuroFilter(c.min_cutoff, c.beta, c.d_cutoff)
-                self.tracks.append(Track(self._next_id, f, f(eyes[i], t), boxes[i].copy(), t))
+                self.tracks.append(Track(self._next_id, f, f(eyes[i], t), boxes[i].copy(), t, i))
                 self._next_id += 1
         self.tracks = [tr for tr in self.tracks if t - tr.seen <= c.hold]
 
