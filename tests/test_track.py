@@ -184,7 +184,7 @@ def test_templates_size_a_face_finer_than_the_cascade():
     assert found is not None
     ratio_near = box_near[2] / boxes_from_eyes(dev, near)[0, 2]
     assert found[0][2] / truth[2] == pytest.approx(ratio_near, rel=0.03)
-    assert template.measure(frames[1], box_far + np.array([300.0, 0, 0, 0]), ScaleConfig()) is None
+    assert template.measure(frames[1], box_far - np.array([300.0, 0, 0, 0]), ScaleConfig()) is None
 
 
 def test_faces_are_found_near_and_far():

@@ -60,6 +60,8 @@ class FaceTemplate:
         x1 = min(gray.shape[1], int(np.ceil(x + w * config.span + m)))
         y1 = min(gray.shape[0], int(np.ceil(y + w * config.span + m)))
         roi = gray[y0:y1, x0:x1].astype(np.float32)
+        if min(roi.shape[:2]) < 8:  # the box lies (almost) outside the frame
+            return None
         q = min(1.0, config.match_px / w)  # match on a scaled-down copy of a large face
         if q < 1.0:
             roi = cv2.resize(roi, None, fx=q, fy=q, interpolation=cv2.INTER_AREA)
