@@ -99,10 +99,12 @@ def one_round(images: list[np.ndarray], empty_frames: int) -> dict[str, object]:
     stage = {"detect_ms": [], "rest_ms": [], "full_frames": []}
     detect = pipeline.detector.detect
 
-    def timed_detect(frame: np.ndarray, hints: np.ndarray | None = None) -> np.ndarray:
+    def timed_detect(
+        frame: np.ndarray, hints: np.ndarray | None = None, **kw: object
+    ) -> np.ndarray:
         before = pipeline.detector.full_searches
         t0 = time.perf_counter()
-        out = detect(frame, hints)
+        out = detect(frame, hints, **kw)  # type: ignore[arg-type]
         stage["detect_ms"].append(1e3 * (time.perf_counter() - t0))
         stage["full_frames"].append(pipeline.detector.full_searches > before)
         return out
@@ -116,6 +118,7 @@ def one_round(images: list[np.ndarray], empty_frames: int) -> dict[str, object]:
         if res.sent:
             sent.append((frame.index, frame.captured))
     time.sleep(0.3)
+    pipeline.close()
     stream.close()
     reader.stop()
     listener.stop()

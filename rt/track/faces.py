@@ -162,15 +162,31 @@ class FaceDetector:
             return None
         return np.median(np.asarray(found), axis=0) + np.array([x0, y0, 0.0, 0.0]), score
 
-    def detect(self, frame: np.ndarray, hints: np.ndarray | None = None) -> np.ndarray:
+    def candidates(self, frame: np.ndarray) -> np.ndarray:
+        """The full-frame search alone: (N, 4) candidate boxes for :meth:`detect`'s hints
+        (unrefined, unchecked). Safe on another thread with another FaceDetector."""
+        gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        c = self.config
+        return self._search(gray, c.min_px, c.max_px, coarse=True)[0]
+
+    def detect(
+        self,
+        frame: np.ndarray,
+        hints: np.ndarray | None = None,
+        gray: np.ndarray | None = None,
+        periodic: bool = True,
+    ) -> np.ndarray:
         """Faces in ``frame``.
 
         Args:
             frame: (h, w, 3) uint8 BGR (OpenCV's order) or (h, w) uint8 gray.
             hints: (K, 4) boxes (x, y, w, h) where faces were last seen, or None; with hints
-                only those neighbourhoods are searched, except every ``full_every``-th frame,
-                every frame without hints and a frame where a hinted face is not found
-                again, when the whole frame is.
+                only those neighbourhoods are searched, except every ``full_every``-th frame
+                (with ``periodic``), every frame without hints and a frame where a hinted
+                face is not found again, when the whole frame is.
+            gray: ``frame`` in grey, if the caller has it already.
+            periodic: False when another thread runs the periodic full searches
+                (:meth:`candidates`) and passes what they find as hints.
 
         Returns:
             (N, 4) float64 boxes (x, y, w, h), pixels, top-left corner, strongest first; may
@@ -178,12 +194,14 @@ class FaceDetector:
             on which kind of search found it; of boxes that overlap (one's centre inside the
             other) the one with more cascade hits is kept.
         """
-        gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        if gray is None:
+            gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
         c = self.config
         self._frames += 1
         candidates = np.zeros((0, 4)) if hints is None else np.asarray(hints, np.float64)
         candidates = candidates.reshape(-1, 4)
-        full = len(candidates) == 0 or c.full_every <= 1 or self._frames % c.full_every == 0
+        due = periodic and (c.full_every <= 1 or self._frames % c.full_every == 0)
+        full = len(candidates) == 0 or due
         boxes: list[np.ndarray] = []
         scores: list[float] = []
         while True:

@@ -12,7 +12,8 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -35,7 +36,9 @@ class TrackOptions:
     ``near``/``far``: the distances (along the camera's axis) at which faces are searched;
     ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate;
     ``templates``: size tracked faces by their own near view (:mod:`viewcomp.rt.track.scale`)
-    rather than by the cascade's box alone.
+    rather than by the cascade's box alone; ``background_search``: run the periodic
+    full-frame search on a worker thread (None: for a live camera and ``realtime``; a file
+    processed as fast as possible stays on one thread, so its output is reproducible).
     """
 
     face_width: float = FACE_WIDTH
@@ -48,6 +51,7 @@ class TrackOptions:
     detector: DetectorConfig | None = None
     templates: bool = True
     scale: ScaleConfig = field(default_factory=ScaleConfig)
+    background_search: bool | None = None
 
 
 @dataclass
@@ -100,6 +104,16 @@ class Pipeline:
         config.min_px, config.max_px = lo, hi
         self.detector = FaceDetector(config)
         self.tracker = EyeTracker(options.tracker)
+        # Live: the periodic full-frame search (newcomers, while faces are tracked) runs on
+        # a worker thread with a detector of its own, so no frame waits for it.
+        background = options.background_search
+        if background is None:
+            background = bool(getattr(source, "live", False)) or options.realtime
+        self._pool: ThreadPoolExecutor | None = None
+        self._pending: Future[np.ndarray] | None = None
+        if background:
+            self._background = FaceDetector(replace(config))
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewcomp-faces")
         self.publishers = list(publishers)
         self.stats = Stats()
 
@@ -132,10 +146,26 @@ class Pipeline:
             ):
                 tr.template = FaceTemplate(gray, b)
 
+    def _hints(self, frame: Frame) -> tuple[np.ndarray, bool]:
+        """Where to look in ``frame``: the tracked faces, plus what the background search
+        found since the last frame; and whether the detector does its periodic full search
+        itself (no background search)."""
+        hints = self.tracker.hints()
+        if self._pool is None:
+            return hints, True
+        if self._pending is not None and self._pending.done():
+            hints = np.concatenate([hints, self._pending.result()])
+            self._pending = None
+        every = self.detector.config.full_every
+        if self._pending is None and len(self.tracker.tracks) and frame.index % every == 0:
+            self._pending = self._pool.submit(self._background.candidates, frame.image)
+        return hints, False
+
     def step(self, frame: Frame) -> FrameResult:
         """Detect, size, estimate, filter and publish one frame."""
-        boxes = self.detector.detect(frame.image, self.tracker.hints())
         gray = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
+        hints, periodic = self._hints(frame)
+        boxes = self.detector.detect(frame.image, hints, gray=gray, periodic=periodic)
         sized = self._sized(gray, boxes) if self.options.templates else boxes
         raw = eyes_from_boxes(self.device, sized, self.options.face_width, self.options.eye_row)
         ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
@@ -169,7 +199,9 @@ class Pipeline:
         return self.stats
 
     def close(self) -> None:
-        """Release the source and the publishers."""
+        """Release the source, the search thread and the publishers."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
         self.source.close()
         for p in self.publishers:
             p.close()
