@@ -9,6 +9,7 @@ and checking the camera first, so that a bad ``SRC`` fails before anything runs)
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Sequence
@@ -25,6 +26,8 @@ from viewcomp.rt.track.publish import Publisher
 from viewcomp.rt.track.scale import FaceTemplate, ScaleConfig
 from viewcomp.rt.track.source import ArraySource, Frame, FrameSource, SourceError
 from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
+
+log = logging.getLogger(__name__)
 
 EYE_LIMIT = 50.0  # metres: estimates farther than this (or behind the screen) are not viewers
 
@@ -268,8 +271,9 @@ class TrackerThread:
     def _run(self) -> None:
         try:
             self.pipeline.run(self._stop)
-        except Exception as exc:  # reported by the player's log through stop()
+        except Exception as exc:  # a camera unplugged, a corrupt file: playback goes on
             self.error = exc
+            log.warning("face tracker stopped: %s; the eye stays where it was", exc)
 
     def stop(self) -> None:
         """Stop the thread and release the camera."""
