@@ -459,3 +459,25 @@ def test_play_with_a_bad_track_camera_is_exit_2(tmp_path: Path, capsys):
         assert code == 2
         err = capsys.readouterr().err
         assert err.startswith("viewcomp play: error: ") and says in err
+
+
+def test_nearest_keeps_a_viewer_through_a_missed_frame():
+    """Two viewers 0.2 m apart in distance: a frame that misses the followed one keeps its
+    (held) eye instead of jumping to the other; a viewer nearer by more than the margin
+    takes over at once."""
+    tr = EyeTracker(TrackerConfig(hold=1.0, switch_margin=0.3))
+    a, b = np.array([0.3, 0.1, 1.5]), np.array([-0.5, 0.1, 1.6])
+    box = np.array([100.0, 100.0, 50.0, 50.0])
+    both = np.stack([a, b])
+    boxes = np.stack([box, box + np.array([300.0, 0, 0, 0])])
+    np.testing.assert_array_equal(tr.update(both, boxes, 0.0)[0], a)
+    np.testing.assert_array_equal(tr.update(b[None], boxes[1:], 0.1)[0], a)  # a missed: held
+    np.testing.assert_array_equal(tr.update(both, boxes, 0.2)[0], a)
+    near = np.array([0.0, 0.1, 0.9])  # nearer than a by 0.6 m
+    got = tr.update(
+        np.stack([a, b, near]), np.stack([*boxes, box + np.array([600.0, 0, 0, 0])]), 0.3
+    )
+    np.testing.assert_array_equal(got[0], near)
+    # everyone gone: after the hold, the followed eye eases to the default
+    gone = tr.update(np.zeros((0, 3)), np.zeros((0, 4)), 0.3 + 1.0 + 0.5)
+    assert 0 < np.linalg.norm(gone[0] - near) < np.linalg.norm(np.array((0.0, 0.0, 2.0)) - near)

@@ -103,8 +103,7 @@ class Pipeline:
         except ValueError as exc:
             raise SourceError(f"{source.src}: {exc}") from None
         lo, hi = size_range(self.device.focal(), options.face_width, options.near, options.far)
-        config = options.detector or DetectorConfig()
-        config.min_px, config.max_px = lo, hi
+        config = replace(options.detector or DetectorConfig(), min_px=lo, max_px=hi)
         self.detector = FaceDetector(config)
         self.tracker = EyeTracker(options.tracker)
         # Live: the periodic full-frame search (newcomers, while faces are tracked) runs on
@@ -114,6 +113,7 @@ class Pipeline:
             background = bool(getattr(source, "live", False)) or options.realtime
         self._pool: ThreadPoolExecutor | None = None
         self._pending: Future[np.ndarray] | None = None
+        self._since_full = 0  # frames since the last background search started
         if background:
             self._background = FaceDetector(replace(config))
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewcomp-faces")
@@ -159,9 +159,11 @@ class Pipeline:
         if self._pending is not None and self._pending.done():
             hints = np.concatenate([hints, self._pending.result()])
             self._pending = None
-        every = self.detector.config.full_every
-        if self._pending is None and len(self.tracker.tracks) and frame.index % every == 0:
+        self._since_full += 1
+        due = self._since_full >= self.detector.config.full_every
+        if self._pending is None and len(self.tracker.tracks) and due:
             self._pending = self._pool.submit(self._background.candidates, frame.image)
+            self._since_full = 0
         return hints, False
 
     def step(self, frame: Frame) -> FrameResult:

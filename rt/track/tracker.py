@@ -9,10 +9,12 @@ first, within ``gate`` metres; an unmatched eye starts a track; a track not seen
 What is published (:meth:`EyeTracker.update`):
 
 - ``faces="nearest"``: one eye: the nearest viewer's (distance from the screen centre, the
-  world origin), kept while it is seen unless another is nearer by ``switch_margin`` metres
-  (so two viewers at about the same distance do not flip the picture). When nobody is seen
-  the last published eye is held for ``hold`` seconds, then eases to ``default_eye`` over
-  ``ease`` seconds (smoothstep); before anyone was seen it is ``default_eye``.
+  world origin), kept while it is seen or held unless another viewer is seen nearer by
+  ``switch_margin`` metres (so two viewers at about the same distance, or a frame that
+  misses one of them, do not flip the picture). A viewer no longer seen is held for
+  ``hold`` seconds; then another seen viewer is followed, or, with nobody seen, the eye
+  eases to ``default_eye`` over ``ease`` seconds (smoothstep). Before anyone was seen it is
+  ``default_eye``.
 - ``faces="all"``: every current track's eye (held ones included), nearest first; when
   there is none, the single eye that ``"nearest"`` would publish, so there is always one.
 
@@ -80,10 +82,9 @@ class EyeTracker:
         if self.config.faces not in ("nearest", "all"):
             raise ValueError(f'faces is "nearest" or "all", got {self.config.faces!r}')
         self._next_id = 0
-        self._chosen: int | None = None
-        self._last = np.asarray(self.config.default_eye, np.float64)  # last published eye
-        self._lost_at: float | None = None  # when the published viewer was last seen
-        self._lost_eye = self._last.copy()
+        self._chosen: int | None = None  # the id of the viewer "nearest" follows
+        self._lost_at: float | None = None  # when the followed viewer was last seen
+        self._lost_eye = np.asarray(self.config.default_eye, np.float64)
 
     def hints(self) -> np.ndarray:
         """(K, 4) boxes where the current tracks' faces were last seen."""
@@ -122,18 +123,20 @@ class EyeTracker:
         """The eye of ``faces="nearest"`` at time t (tracks already updated)."""
         c = self.config
         seen = [tr for tr in self.tracks if tr.seen == t]
+        # the followed viewer, seen now or held (not seen for at most `hold` seconds)
+        current = next((tr for tr in self.tracks if tr.id == self._chosen), None)
         if seen:
             best = min(seen, key=lambda tr: float(np.linalg.norm(tr.eye)))
-            current = next((tr for tr in seen if tr.id == self._chosen), None)
-            if current is not None and (
+            if current is None or (
                 float(np.linalg.norm(current.eye)) - float(np.linalg.norm(best.eye))
-                <= c.switch_margin
+                > c.switch_margin
             ):
-                best = current
-            self._chosen = best.id
-            self._lost_at = t
-            self._lost_eye = best.eye.copy()
-            return best.eye.copy()
+                current = best
+        if current is not None:
+            self._chosen = current.id
+            self._lost_at = current.seen
+            self._lost_eye = current.eye.copy()
+            return current.eye.copy()
         default = np.asarray(c.default_eye, np.float64)
         if self._lost_at is None:
             return default
