@@ -9,5 +9,7 @@ Sub-packages, in the order a frame flows through them (nothing GL is imported he
 - ``play``: ``viewcomp play``: the fullscreen player, live eye input, the embedding API
   (``LiveRenderer``), the capture window and a private X server for headless runs.
 - ``export``: ``viewcomp export-mpv``: the compensation as an mpv user shader.
+- ``track``: ``viewcomp track``: faces in a camera's frames -> viewers' eye positions, live
+  (OpenCV, no GL).
 - ``testing`` (a module): synthetic models, frames and clips for tests and benchmarks.
 """

@@ -23,6 +23,7 @@ COMMANDS = (
     "evaluate",
     "demo",
     "play",
+    "track",
     "export-mpv",
 )
 
@@ -37,6 +38,7 @@ A typical session:
   viewcomp render screen.vcb in.mp4 -o out.mp4 --angle 60
   viewcomp preview screen.vcb photo.jpg -o seen.png --angle 60   what the audience sees
   viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
+  viewcomp track --camera 0 --rig screen.vcb | viewcomp play ...  follow the viewer's face
   viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
   viewcomp demo                               all of the above on a built-in example
@@ -77,8 +79,9 @@ def _known_errors() -> tuple[type[BaseException], ...]:
         from viewcomp.rt.media.video import VideoError
         from viewcomp.rt.render.pipeline import ImageError
         from viewcomp.rt.render.tracks import TrackError
+        from viewcomp.rt.track.source import SourceError
 
-        errors += [GLUnavailable, ImageError, TrackError, VideoError]
+        errors += [GLUnavailable, ImageError, TrackError, VideoError, SourceError]
     except ImportError:  # the run-time part is optional for calibration-only installs
         pass
     return tuple(errors)

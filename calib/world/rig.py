@@ -210,12 +210,17 @@ class CaptureSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class Rig:
-    """Everything rig.toml says. ``viewer.height`` is filled with the camera's y if None."""
+    """Everything rig.toml says. ``viewer.height`` is filled with the camera's y if None.
+
+    ``tracker`` is the optional ``[tracker]`` section (the camera that follows the audience,
+    see :func:`tracking_camera`); None when rig.toml has none.
+    """
 
     projector: Device
     camera: Camera
     viewer: Viewer
     capture: CaptureSpec
+    tracker: Device | None = None
 
     def __post_init__(self) -> None:
         if self.viewer.height is None:
@@ -363,13 +368,13 @@ class _Parser:
     def rig(self, d: Any) -> Rig:
         if not isinstance(d, dict):
             raise self.error("", f"must be a table of sections, got {_fmt(d)}")
-        unknown = [k for k in d if k not in _SECTIONS]
+        unknown = [k for k in d if k not in _SECTIONS and k != TRACKER_SECTION]
         if unknown:
             raise self.error(
                 "",
                 f"unknown section{'s' if len(unknown) > 1 else ''} "
                 f"{', '.join('[' + k + ']' for k in unknown)}; allowed: "
-                f"{', '.join('[' + k + ']' for k in _SECTIONS)}",
+                f"{', '.join('[' + k + ']' for k in (*_SECTIONS, TRACKER_SECTION))}",
             )
         missing = [k for k in _SECTIONS if k not in d]
         if missing:
@@ -410,7 +415,15 @@ class _Parser:
             camera=camera,
             viewer=Viewer(distance=float(dist), height=height),
             capture=CaptureSpec(space=space),
+            tracker=self.tracker(d.get(TRACKER_SECTION)),
         )
+
+    def tracker(self, t: Any) -> Device | None:
+        """The optional ``[tracker]`` section: a device with the keys of ``[projector]``."""
+        if t is None:
+            return None
+        self.check_keys(TRACKER_SECTION, t, _DEVICE_KEYS)
+        return Device(**self.device(TRACKER_SECTION, t))
 
 
 def rig_from_dict(d: dict[str, Any], source: str = "rig.toml") -> Rig:
@@ -509,4 +522,46 @@ def rig_to_toml(rig: Rig) -> str:
             if f.name in units:
                 text = f"{text:<40} # {units[f.name]}"
             lines.append(text)
+    if rig.tracker is not None:
+        lines += ["", f"[{TRACKER_SECTION}]", *_tracker_lines(rig.tracker)]
     return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------
+# The tracking camera: an optional [tracker] section, the webcam that follows the audience
+
+
+TRACKER_SECTION = "tracker"
+
+
+def tracking_camera(rig: Rig) -> Device:
+    """The camera that follows the audience (``viewcomp track``): ``[tracker]`` if rig.toml has
+    one, else ``[camera]`` (the calibration camera, when it is the kiosk's webcam).
+
+    Raises:
+        RigError: the chosen camera looks toward the screen (its viewing direction has no
+            +z part), so it cannot see a viewer in front of it.
+    """
+    device: Device = rig.tracker if rig.tracker is not None else rig.camera
+    rot, _ = device.pose()
+    if rot[2, 2] <= 0.0:
+        which = "[tracker]" if rig.tracker is not None else "[camera] (no [tracker] section)"
+        raise RigError(
+            f"the tracking camera {which} looks toward the screen (look_at - position has no "
+            "+z part), so it cannot see the audience; add a [tracker] section with the webcam "
+            "that faces the viewers (docs/INTERFACES.md, rig.toml)"
+        )
+    return device
+
+
+def _tracker_lines(device: Device) -> list[str]:
+    """The ``[tracker]`` section's ``key = value`` lines (optional keys left out when None)."""
+    out = []
+    for f in fields(Device):
+        value = getattr(device, f.name)
+        if value is None:
+            continue
+        if f.name != "resolution":
+            value = [float(v) for v in value] if isinstance(value, tuple) else float(value)
+        out.append(f"{f.name} = {_toml_value(value)}")
+    return out

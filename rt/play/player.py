@@ -217,6 +217,7 @@ class PlayerOptions:
     norm_range: tuple[float, float] = NORM_RANGE
     osc_feedback: tuple[str, int] | None = None
     feedback_every: float = 1.0
+    inputs: tuple[Any, ...] = ()  # more eye sources: start(hub) -> an object with stop()
 
 
 @dataclass
@@ -651,6 +652,8 @@ class Player:
             log.info("listening for OSC on %s:%d", *listener.address)
         if o.stdin_fd is not None:
             self._threads.append(LineReader(self.hub, o.stdin_fd).start())
+        for source in o.inputs:  # e.g. the face tracker of --track-camera
+            self._threads.append(source.start(self.hub))
         if o.audio:
             out = open_alsa(o.audio_device)
             if out is not None:

@@ -28,6 +28,7 @@ live angle input and show control:
             sender: file, position s, paused, angle, eye x y z, fps, dropped, blackout)
   stdin     lines `angle 60`, `norm 0.5`, `eye 0.1 0.0 0.5`, `pause`, `resume`,
             `seek 12.5`, `next`, `previous`, `blackout 1`, `status` (printed to stdout)
+  camera    --track-camera SRC: the nearest face's eye (defaults of `viewcomp track`)
 Moves are smoothed (--eye-smooth); malformed messages are logged and dropped.
 """
 
@@ -54,6 +55,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--osc", metavar="HOST:PORT",
                    help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
     p.add_argument("--no-stdin", action="store_true", help="do not read commands from stdin")
+    p.add_argument("--track-camera", metavar="SRC",
+                   help="follow the nearest face in camera SRC (see `viewcomp track`)")  # fmt: skip
     add_tone_arguments(p)
     p.add_argument("--eye-smooth", type=float, default=0.25,
                    help="eye smoothing time constant, s (default 0.25; 0: instant)")  # fmt: skip
@@ -97,6 +100,15 @@ def _stdin_fd() -> int | None:
         return sys.stdin.fileno()
     except (AttributeError, OSError, ValueError):
         return None
+
+
+def _tracker(src: str | None, rig: object) -> tuple[object, ...]:
+    """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early)."""
+    if not src:
+        return ()
+    from viewcomp.rt.track.run import TrackerThread, build, default_options
+
+    return (TrackerThread(build(src, rig, default_options(rig))),)  # type: ignore[arg-type]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -164,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
             norm_range=norm_range,
             osc_feedback=feedback,
             feedback_every=args.feedback_every,
+            inputs=_tracker(args.track_camera, cal.rig),
         )
         stats = Player(cal, args.videos, options).run()
     except PlayerError as exc:

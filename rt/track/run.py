@@ -1,0 +1,319 @@
+"""The tracking loop: frames -> faces -> eyes -> filter -> publishers, and its thread.
+
+:func:`build` turns a ``SRC`` and a rig into a ready :class:`Pipeline` (opening the source
+and checking the camera first, so that a bad ``SRC`` fails before anything runs);
+:meth:`Pipeline.run` processes frames until the source ends or a stop is asked;
+:class:`TrackerThread` runs it on a thread of its own for ``viewcomp play --track-camera``
+(it feeds the player's input queue; no GL is touched off the player's thread).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+
+import cv2
+import numpy as np
+
+from viewcomp.calib.world.rig import Device, Rig, tracking_camera
+from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
+from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
+from viewcomp.rt.track.publish import Publisher
+from viewcomp.rt.track.scale import FaceTemplate, ScaleConfig
+from viewcomp.rt.track.source import ArraySource, Frame, FrameSource, SourceError
+from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
+
+log = logging.getLogger(__name__)
+
+EYE_LIMIT = 50.0  # metres: estimates farther than this (or behind the screen) are not viewers
+
+
+@dataclass
+class TrackOptions:
+    """Everything ``viewcomp track`` can set. Metres, seconds, Hz.
+
+    ``near``/``far``: the distances (along the camera's axis) at which faces are searched;
+    ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate;
+    ``templates``: size tracked faces by their own near view (:mod:`viewcomp.rt.track.scale`)
+    rather than by the cascade's box alone; ``background_search``: run the periodic
+    full-frame search on a worker thread (None: for a live camera and ``realtime``; a file
+    processed as fast as possible stays on one thread, so its output is reproducible).
+    """
+
+    face_width: float = FACE_WIDTH
+    eye_row: float = EYE_ROW
+    near: float = 0.5
+    far: float = 4.0
+    fps: float = 30.0
+    realtime: bool = False
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    detector: DetectorConfig | None = None
+    templates: bool = True
+    scale: ScaleConfig = field(default_factory=ScaleConfig)
+    background_search: bool | None = None
+
+
+@dataclass
+class FrameResult:
+    """What one frame gave: the raw eyes (N, 3), the published eyes (K, 3), and times:
+    ``captured`` (monotonic s, the frame handed over) and ``done`` (published)."""
+
+    index: int
+    t: float
+    raw: np.ndarray
+    eyes: np.ndarray
+    sent: bool
+    captured: float
+    done: float
+
+
+@dataclass
+class Stats:
+    """Totals of a run: frames, frames with a face, lines/messages sent, mean ms per frame."""
+
+    frames: int = 0
+    with_face: int = 0
+    sent: int = 0
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        ms = 1000.0 * self.seconds / max(self.frames, 1)
+        return (f"{self.frames} frames, a face in {self.with_face}, {self.sent} updates "
+                f"sent, {ms:.1f} ms per frame")  # fmt: skip
+
+
+class Pipeline:
+    """One source, one camera model, one detector, one tracker, any publishers."""
+
+    def __init__(
+        self,
+        source: FrameSource | ArraySource,
+        device: Device,
+        options: TrackOptions,
+        publishers: Sequence[Publisher] = (),
+    ) -> None:
+        self.source = source
+        self.options = options
+        try:
+            self.device = camera_for_frames(device, source.size)
+        except ValueError as exc:
+            raise SourceError(f"{source.src}: {exc}") from None
+        lo, hi = size_range(self.device.focal(), options.face_width, options.near, options.far)
+        config = replace(options.detector or DetectorConfig(), min_px=lo, max_px=hi)
+        self.detector = FaceDetector(config)
+        self.tracker = EyeTracker(options.tracker)
+        # Live: the periodic full-frame search (newcomers, while faces are tracked) runs on
+        # a worker thread with a detector of its own, so no frame waits for it.
+        background = options.background_search
+        if background is None:
+            background = bool(getattr(source, "live", False)) or options.realtime
+        self._pool: ThreadPoolExecutor | None = None
+        self._pending: Future[np.ndarray] | None = None
+        self._since_full = 0  # frames since the last background search started
+        if background:
+            self._background = FaceDetector(replace(config))
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewcomp-faces")
+        self.publishers = list(publishers)
+        self.stats = Stats()
+
+    def _sized(self, gray: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """``boxes`` with each tracked face's size and place from its template, where it has
+        one and the template finds it (:mod:`viewcomp.rt.track.scale`)."""
+        out = boxes.copy()
+        for tr in self.tracker.tracks:
+            if tr.template is None or len(boxes) == 0:
+                continue
+            i = int(np.argmax(_overlap(tr.box, boxes)))
+            if _overlap(tr.box, boxes)[i] < 0.3:
+                continue
+            found = tr.template.measure(gray, boxes[i], self.options.scale)
+            if found is not None:
+                out[i] = found[0]
+        return out
+
+    def _keep_templates(self, gray: np.ndarray, boxes: np.ndarray, t: float) -> None:
+        """Take a face's template when it is seen large enough, and larger than before."""
+        anchor = self.options.scale.anchor_px
+        for tr in self.tracker.tracks:
+            if tr.seen != t or not 0 <= tr.index < len(boxes):
+                continue
+            b = boxes[tr.index]
+            if (
+                b[2] >= anchor
+                and FaceTemplate.fits(gray, b)
+                and (tr.template is None or b[2] > 1.05 * tr.template.width)
+            ):
+                tr.template = FaceTemplate(gray, b)
+
+    def _hints(self, frame: Frame) -> tuple[np.ndarray, bool]:
+        """Where to look in ``frame``: the tracked faces, plus what the background search
+        found since the last frame; and whether the detector does its periodic full search
+        itself (no background search)."""
+        hints = self.tracker.hints()
+        if self._pool is None:
+            return hints, True
+        if self._pending is not None and self._pending.done():
+            hints = np.concatenate([hints, self._pending.result()])
+            self._pending = None
+        self._since_full += 1
+        due = self._since_full >= self.detector.config.full_every
+        if self._pending is None and len(self.tracker.tracks) and due:
+            self._pending = self._pool.submit(self._background.candidates, frame.image)
+            self._since_full = 0
+        return hints, False
+
+    def step(self, frame: Frame) -> FrameResult:
+        """Detect, size, estimate, filter and publish one frame."""
+        gray = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
+        hints, periodic = self._hints(frame)
+        boxes = self.detector.detect(frame.image, hints, gray=gray, periodic=periodic)
+        sized = self._sized(gray, boxes) if self.options.templates else boxes
+        raw = eyes_from_boxes(self.device, sized, self.options.face_width, self.options.eye_row)
+        ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
+        raw, boxes, sized = raw[ok], boxes[ok], sized[ok]
+        eyes = self.tracker.update(raw, sized, frame.t)
+        if self.options.templates:
+            self._keep_templates(gray, boxes, frame.t)
+        sent = False
+        for p in self.publishers:
+            sent = p.publish(eyes) or sent
+        done = time.monotonic()
+        self.stats.frames += 1
+        self.stats.with_face += int(len(raw) > 0)
+        self.stats.sent += int(sent)
+        self.stats.seconds += done - frame.captured
+        return FrameResult(frame.index, frame.t, raw, eyes, sent, frame.captured, done)
+
+    def run(
+        self,
+        stop: threading.Event | None = None,
+        max_seconds: float | None = None,
+    ) -> Stats:
+        """Process frames until the source ends, ``stop`` is set or ``max_seconds`` (of
+        frame time) have passed."""
+        for frame in self.source:
+            if stop is not None and stop.is_set():
+                break
+            if max_seconds is not None and frame.t > max_seconds:
+                break
+            self.step(frame)
+        return self.stats
+
+    def close(self) -> None:
+        """Release the source, the search thread and the publishers."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self.source.close()
+        for p in self.publishers:
+            p.close()
+
+
+def _overlap(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Intersection over union (0..1) of ``box`` (4,) with each of ``boxes`` (N, 4)."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    ix = np.clip(
+        np.minimum(box[0] + box[2], b[:, 0] + b[:, 2]) - np.maximum(box[0], b[:, 0]), 0, None
+    )
+    iy = np.clip(
+        np.minimum(box[1] + box[3], b[:, 1] + b[:, 3]) - np.maximum(box[1], b[:, 1]), 0, None
+    )
+    inter = ix * iy
+    return inter / (box[2] * box[3] + b[:, 2] * b[:, 3] - inter)
+
+
+def build(
+    src: str,
+    rig: Rig,
+    options: TrackOptions,
+    publishers: Sequence[Publisher] = (),
+) -> Pipeline:
+    """A pipeline for camera ``src`` whose pose and intrinsics are the rig's tracking camera
+    (:func:`viewcomp.calib.world.rig.tracking_camera`).
+
+    Raises:
+        RigError: the rig's tracking camera faces the screen.
+        SourceError: ``src`` cannot be read, or its frames do not fit the camera's aspect.
+    """
+    device = tracking_camera(rig)
+    source = FrameSource(src, fps=options.fps, realtime=options.realtime,
+                         size=device.resolution)  # fmt: skip
+    try:
+        return Pipeline(source, device, options, publishers)
+    except BaseException:
+        source.close()
+        raise
+
+
+class TrackerThread:
+    """A pipeline on its own thread, publishing into a player's input hub.
+
+    ``start(hub)`` adds a :class:`viewcomp.rt.track.publish.HubPublisher` and starts the
+    thread; ``stop()`` ends it and releases the source. A source that ends (a file) ends the
+    thread; the player goes on with the last eye.
+    """
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.pipeline = pipeline
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-track", daemon=True)
+        self.error: BaseException | None = None
+
+    def start(self, hub: object) -> TrackerThread:
+        """Publish into ``hub`` (an InputHub) and start."""
+        from viewcomp.rt.track.publish import HubPublisher
+
+        self.pipeline.publishers.append(HubPublisher(hub))
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        try:
+            self.pipeline.run(self._stop)
+        except Exception as exc:  # a camera unplugged, a corrupt file: playback goes on
+            self.error = exc
+            log.warning("face tracker stopped: %s; the eye stays where it was", exc)
+
+    def stop(self) -> None:
+        """Stop the thread and release the camera."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.pipeline.close()
+
+
+def load_tracking_rig(path: str) -> Rig:
+    """The rig of a ``rig.toml``, of a capture set (a folder with one) or of a calibration
+    bundle (the rig it was calibrated with).
+
+    Raises:
+        RigError, BundleError: the file cannot be read; the message says why.
+    """
+    import tomllib
+    from pathlib import Path
+
+    from viewcomp.calib.world.rig import load_rig, rig_from_dict
+
+    p = Path(path)
+    if p.is_dir():
+        return load_rig(p / "rig.toml")
+    if p.suffix.lower() == ".toml" or not p.exists():
+        return load_rig(p)
+    from viewcomp.calib.io.bundle import BundleError, load_bundle
+
+    _, meta = load_bundle(p)
+    try:
+        return rig_from_dict(tomllib.loads(meta["rig"]), source=f"{p} (rig)")
+    except (KeyError, TypeError, tomllib.TOMLDecodeError) as exc:
+        raise BundleError(f"{p}: the bundle holds no readable rig ({exc}); recalibrate") from None
+
+
+def default_options(rig: Rig) -> TrackOptions:
+    """``viewcomp track``'s defaults for ``rig``: the default eye is its [viewer] at 90
+    degrees."""
+    eye = rig.viewer.eye(90.0)
+    tracker = TrackerConfig(default_eye=(float(eye[0]), float(eye[1]), float(eye[2])))
+    return TrackOptions(tracker=tracker)

@@ -1,0 +1,149 @@
+"""`viewcomp track --camera SRC --rig RIG`: follow viewers' faces, publish their eyes live."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from viewcomp.commands._common import nonnegative, parse_vec3
+
+EPILOG = """\
+output (metres, world frame: screen plane z = 0, +y up, +z toward the audience):
+  --faces nearest   lines `eye X Y Z` on stdout, OSC /viewcomp/eye f f f
+  --faces all       lines `eyes X1 Y1 Z1 X2 Y2 Z2 ...`, OSC /viewcomp/eyes with 3k floats
+A line is written only when the eye changed. Typical use:
+  viewcomp track --camera 0 --rig screen.vcb | viewcomp play screen.vcb clip.mp4
+"""
+
+
+def positive(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    v = nonnegative(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return v
+
+
+def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
+    """The tracking options shared with ``play --track-camera``: face model, timing, filter."""
+    g = p.add_argument_group("tracking")
+    g.add_argument("--face-width", type=positive, default=0.15, metavar="M",
+                   help="width of a face's detector box, metres (default 0.15)")  # fmt: skip
+    g.add_argument("--hold", type=nonnegative, default=1.0, metavar="S",
+                   help="seconds a lost face's eye is held (default 1)")  # fmt: skip
+    g.add_argument("--ease", type=nonnegative, default=1.0, metavar="S",
+                   help="seconds to ease from a lost eye to the default (default 1)")  # fmt: skip
+    g.add_argument("--default-angle", type=float, default=90.0, metavar="DEG",
+                   help="the eye when nobody is seen: this viewing angle at the rig's [viewer] "
+                        "distance and height (default 90)")  # fmt: skip
+    g.add_argument("--default-eye", metavar="X,Y,Z",
+                   help="the eye when nobody is seen, metres")  # fmt: skip
+    g.add_argument("--min-cutoff", type=positive, default=2.0, metavar="HZ",
+                   help="One-Euro filter cutoff at rest, Hz (default 2)")  # fmt: skip
+    g.add_argument("--beta", type=nonnegative, default=5.0,
+                   help="One-Euro filter speed coefficient, Hz per m/s (default 5)")  # fmt: skip
+    g.add_argument("--near", type=positive, default=0.5, metavar="M",
+                   help="nearest face searched, metres from the camera (default 0.5)")  # fmt: skip
+    g.add_argument("--far", type=positive, default=4.0, metavar="M",
+                   help="farthest face searched, metres (default 4)")  # fmt: skip
+    g.add_argument("--fps", type=positive, default=30.0,
+                   help="frame rate of an image sequence (default 30)")  # fmt: skip
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "track",
+        help="follow viewers with a camera; publish their eye positions (stdout, OSC)",
+        description="Detect faces in a camera's frames, estimate each viewer's eye position "
+        "from the face's place and size and the tracking camera of the rig ([tracker], or "
+        "[camera] without one), smooth it (One-Euro filter) and publish it live.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--camera", required=True, metavar="SRC",
+                   help="camera index (0, 1, ...), a video file, a folder of images or a "
+                        "glob ('frames/*.png')")  # fmt: skip
+    p.add_argument("--rig", required=True, metavar="FILE",
+                   help="the tracking camera's pose and intrinsics: a rig.toml, a capture "
+                        "set folder or a calibration bundle")  # fmt: skip
+    p.add_argument("--faces", choices=["nearest", "all"], default="nearest",
+                   help="publish the nearest viewer (default) or all of them")  # fmt: skip
+    p.add_argument("--osc", metavar="HOST:PORT",
+                   help="also send OSC to HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
+    p.add_argument("--no-stdout", action="store_true", help="write no lines on stdout")
+    p.add_argument("--realtime", action="store_true",
+                   help="pace a video file or image sequence at its frame rate")  # fmt: skip
+    p.add_argument("--seconds", type=positive, default=None,
+                   help="stop after this many seconds of frames")  # fmt: skip
+    p.add_argument("--quiet", action="store_true", help="no summary on stderr")
+    add_tracker_arguments(p)
+    p.set_defaults(run=run)
+
+
+def tracker_options(args: argparse.Namespace, rig: object) -> object:
+    """The :class:`viewcomp.rt.track.run.TrackOptions` for parsed arguments and a rig."""
+    from viewcomp.cli import UsageError
+    from viewcomp.rt.play.live import InputError, check_angle, check_eye
+    from viewcomp.rt.track.run import TrackOptions
+    from viewcomp.rt.track.tracker import TrackerConfig
+
+    try:
+        if args.default_eye:
+            default = check_eye(tuple(parse_vec3(args.default_eye, "--default-eye")))
+        else:
+            e = rig.viewer.eye(check_angle(args.default_angle))  # type: ignore[attr-defined]
+            default = (float(e[0]), float(e[1]), float(e[2]))
+    except InputError as exc:
+        raise UsageError(f"the default eye: {exc}") from None
+    if args.near >= args.far:
+        raise UsageError(f"--near ({args.near:g} m) must be less than --far ({args.far:g} m)")
+    config = TrackerConfig(
+        faces=getattr(args, "faces", "nearest"),
+        default_eye=default,
+        hold=args.hold,
+        ease=args.ease,
+        min_cutoff=args.min_cutoff,
+        beta=args.beta,
+    )
+    return TrackOptions(face_width=args.face_width, near=args.near, far=args.far,
+                        fps=args.fps, realtime=getattr(args, "realtime", False),
+                        tracker=config)  # fmt: skip
+
+
+def run(args: argparse.Namespace) -> int:
+    from viewcomp.cli import UsageError
+    from viewcomp.rt.play.live import InputError, parse_host_port
+    from viewcomp.rt.track.publish import LinePublisher, OscPublisher, Publisher
+    from viewcomp.rt.track.run import build, load_tracking_rig
+    from viewcomp.rt.track.source import SourceError
+
+    rig = load_tracking_rig(args.rig)
+    options = tracker_options(args, rig)
+    all_faces = args.faces == "all"
+    publishers: list[Publisher] = []
+    if not args.no_stdout:
+        publishers.append(LinePublisher(sys.stdout, all_faces))
+    if args.osc:
+        try:
+            host, port = parse_host_port(args.osc)
+            publishers.append(OscPublisher(host, port, all_faces))
+        except (InputError, OSError) as exc:
+            raise UsageError(f"--osc {args.osc}: {exc}") from None
+    try:
+        pipeline = build(args.camera, rig, options, publishers)  # type: ignore[arg-type]
+    except SourceError as exc:
+        print(f"viewcomp track: error: --camera {exc}", file=sys.stderr)
+        return 2
+    try:
+        stats = pipeline.run(max_seconds=args.seconds)
+    except BrokenPipeError:  # the reader (e.g. the player) has gone: a normal end
+        sys.stderr.close()
+        return 0
+    except SourceError as exc:
+        print(f"viewcomp track: error: --camera {exc}", file=sys.stderr)
+        return 2
+    finally:
+        pipeline.close()
+    if not args.quiet:
+        print(f"viewcomp track: {stats.summary()}", file=sys.stderr)
+    return 0
