@@ -23,7 +23,6 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.comp.tonemap import (
-    DEFAULT_BETA_WEIGHT,
     DEFAULT_LAMBDA,
     ToneMap,
     ToneSmoother,
@@ -102,8 +101,6 @@ class Compensation:
         cal: the calibration (both methods).
         method: "pixel" or "paper".
         lam: the tone map's lambda (Eq. 22).
-        beta_weight: mu, the black-lift penalty (per-pixel method only; the paper's method
-            uses Eq. 22 exactly, mu = 0). None: ``DEFAULT_BETA_WEIGHT``.
         tau: time constant (s) of the tone map's smoothing over video frames; None: none.
         feedback: iterations of the paper's Eq. 25 feedback for a still (the paper: 3); for
             video frames (called with a time ``t``) one iteration per frame, carried over.
@@ -114,7 +111,6 @@ class Compensation:
         cal: Calibration,
         method: str = "pixel",
         lam: float = DEFAULT_LAMBDA,
-        beta_weight: float | None = None,
         tau: float | None = None,
         feedback: int = 3,
     ) -> None:
@@ -124,7 +120,6 @@ class Compensation:
         self.cal = cal
         self.method = method
         self.lam = float(lam)
-        self.mu = DEFAULT_BETA_WEIGHT if beta_weight is None else float(beta_weight)
         self.feedback = int(feedback)
         self.smoother = ToneSmoother(tau) if tau else None
         self._pixel_model = cal.pixel.runtime_model() if method == "pixel" else None

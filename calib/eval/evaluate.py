@@ -11,7 +11,8 @@ same eye. Columns:
 - ``paper_60`` / ``pixel_60``: compensated for 60 degrees (the paper's T_60; at rows seen at
   90 this is the paper's "T_60 seen at 90" column of Table 2);
 - ``oracle``: the physical limit: the simulator's true per-pixel model at the eye inverted
-  exactly, with the per-pixel method's tone-map rule (same lambda, same mu).
+  exactly, with the per-pixel method's tone-map rule (the smallest predicted colour error,
+  predicted by the true model).
 
 Calibrations come from simulated 8-bit captures through the same code as `viewcomp
 calibrate`; compensations from the same code as `viewcomp render --backend cpu`.
@@ -28,7 +29,6 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, sample_grid, thumbnail
 from viewcomp.calib.comp.tonemap import (
-    DEFAULT_BETA_WEIGHT,
     DEFAULT_LAMBDA,
     ToneMap,
     choose_predicted_tone_map,
@@ -78,7 +78,6 @@ class World:
     white_raw: dict[str, np.ndarray]
     gloss: str | tuple[float, float]
     lam: float
-    mu: float
     space: str = "projector"  # "camera": captures seen by the simulated camera, rectified
     camera: SimCamera | None = None  # the simulated camera, for space = "camera"
 
@@ -88,7 +87,6 @@ class World:
         seed: int = 0,
         gloss: str | tuple[float, float] = "glossy",
         lam: float = DEFAULT_LAMBDA,
-        mu: float = DEFAULT_BETA_WEIGHT,
         size: tuple[int, int] | None = None,
         projector_fov: float | None = None,
         space: str = "projector",
@@ -119,11 +117,11 @@ class World:
             sim = camera_simulator(scaled_camera_rig(rig, size), seed)
             cam = SimCamera(sim)
             white = capture_camera_patterns(cam, white_screen(), geometric="chessboard")
-            return cls(sim, white, gloss, lam, mu, space, cam)
+            return cls(sim, white, gloss, lam, space, cam)
         if space != "projector":
             raise ValueError(f'space must be "projector" or "camera", got {space!r}')
         sim = Simulator(rig=rig, seed=seed)
-        return cls(sim, capture_patterns(sim, white_screen()), gloss, lam, mu)
+        return cls(sim, capture_patterns(sim, white_screen()), gloss, lam)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -152,7 +150,7 @@ class World:
             screen,
             cal,
             Compensation(cal, "paper", self.lam),
-            Compensation(cal, "pixel", self.lam, self.mu),
+            Compensation(cal, "pixel", self.lam),
         )
 
     def oracle(self, screen: Screen, image: np.ndarray, eye: np.ndarray) -> np.ndarray:

@@ -88,8 +88,7 @@ def run(
             "projector_fov_y": world.sim.rig.projector.fov_y,
             "gloss": world.gloss,
             "lambda": world.lam,
-            "mu_pixel_and_oracle": world.mu,
-            "mu_paper": 0.0,
+            "tone_map_pixel_and_oracle": "smallest predicted colour error (CIE94)",
             "viewer": {
                 "distance": world.sim.rig.viewer.distance,
                 "height": world.sim.rig.viewer.height,
