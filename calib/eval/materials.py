@@ -253,8 +253,10 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "theta_beats_90": {
             a: m["pixel_theta"] < m["pixel_90"] for a, m in means.items() if float(a) != 90.0
         },
-        "gap_closed": won / gap if gap > 1e-9 else float("nan"),
+        # None: no gap (the 90-degree compensation is already at the oracle's error or below).
+        "gap_closed": won / gap if gap > 1e-9 else None,
         "gap_de": gap / max(len(off), 1),
+        "won_de": won / max(len(off), 1),
     }
 
 
@@ -296,8 +298,8 @@ def materials(
                     "param": lobe.param,
                     "rms": lobe.rms.tolist(),
                     "rms_other_param": lobe.rms_other.tolist(),
-                    "rms_phong": [float(x) for x in lobe.rms_phong],
-                    "rms_power_law": [float(x) for x in lobe.rms_power_law],
+                    "rms_phong": _finite(lobe.rms_phong),
+                    "rms_power_law": _finite(lobe.rms_power_law),
                     "peak": lobe.peak.tolist(),
                     "baseline": lobe.baseline.tolist(),
                     "black_share": world.cal.pixel.black_share.tolist(),
@@ -320,13 +322,21 @@ def check_materials(entries: list[dict[str, Any]]) -> dict[str, Any]:
     for capture in sorted({e["capture"] for e in entries}):
         glossy = [e for e in entries if e["capture"] == capture and e["peak_ratio"] >= GLOSSY_RATIO]
         done = [e for e in glossy if e.get("summary")]
-        shares = [e["summary"]["gap_closed"] for e in done]
+        shares = [
+            e["summary"]["gap_closed"] for e in done if e["summary"]["gap_closed"] is not None
+        ]
         out[capture] = {
             "glossy": [e["material"] for e in glossy],
             "all_calibrated": len(done) == len(glossy),
             "theta_beats_90_everywhere": all(
                 all(e["summary"]["theta_beats_90"].values()) for e in done
             ),
-            "mean_gap_closed": float(np.mean(shares)) if shares else float("nan"),
+            "mean_gap_closed": float(np.mean(shares)) if shares else None,
+            "no_gap": [e["material"] for e in done if e["summary"]["gap_closed"] is None],
         }
     return out
+
+
+def _finite(values: np.ndarray) -> list[float | None]:
+    """JSON-safe floats: NaN (a comparison fit that could not run) as None."""
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(values, float)]

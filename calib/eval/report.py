@@ -284,13 +284,17 @@ def write_materials_report(out: Path, report: dict[str, Any]) -> None:
         lobe, summ = e.get("lobe"), e.get("summary")
         rms = (
             " / ".join(
-                f"{np.nanmean(np.asarray(lobe[k], float)):.4f}"
+                f"{np.nanmean(np.asarray(lobe[k], dtype=float)):.4f}"
                 for k in ("rms", "rms_other_param", "rms_phong", "rms_power_law")
             )
             if lobe
             else "-"
         )
-        gap = f"{summ['gap_closed']:.2f}" if summ else "-"
+        gap = (
+            "-"
+            if not summ
+            else ("no gap" if summ["gap_closed"] is None else f"{summ['gap_closed']:.2f}")
+        )
         beats = str(all(summ["theta_beats_90"].values())) if summ else "-"
         md.append(
             f"| {e['material']} | {e['capture']} | {e['peak_ratio']:.0f} | {status} | "

@@ -57,9 +57,10 @@ class LobeFit:
         table: (LOBE_N, 3) lobe values (units of s) at t = k / (LOBE_N - 1), >= 0.
         baseline: (3,) b, the diffuse ratio (units of s).
         t_seen: (lo, hi) the coordinates the camera saw with data.
-        rms: (3,) RMS residual of s - (b + lobe(t)) over the samples (units of s).
+        rms: (3,) RMS residual of s - (b + lobe(t)) (units of s), on the pixels with R.V > 0
+            (at most ~20000 of them), as the three below.
         rms_other: (3,) the same for the other parametrisation's table.
-        rms_phong: (3,) the previous model's, b + kappa (R.V)^gamma.
+        rms_phong: (3,) the previous model's, b + kappa (R.V)^gamma, least squares.
         rms_power_law: (3,) the paper's log s = a + gamma log(R.V), in units of s.
         peak: (3,) the table's largest value (units of s).
         samples: pixels used; ``masked``: pixels left out as clipped or not finite.
@@ -250,21 +251,23 @@ def fit_lobe(
             "not finite): capture with a lower exposure or with --hdr",
         )
     cam = geometry.camera
+    # Every residual is measured on the same samples: the pixels with R.V > 0 (where the
+    # power law is defined), at most about 20000 of them.
+    rv = np.sum(geometry.refl * _unit(cam - geometry.pos), axis=-1)[::step, ::step][ok]
+    pos = np.flatnonzero(rv > 0)
+    sub = pos[:: max(1, pos.size // 20000)] if pos.size >= 20 else np.arange(y.shape[0])
     fits = {}
     for name in LOBE_PARAMS:
         t = lobe_position(geometry.refl, geometry.pos, cam, name == "half", np.float64)
         t = t[::step, ::step][ok]
         table, base, seen = _table(t, y)
-        pred = base + lobe_lookup(table, t)
-        rms = np.sqrt(np.mean((pred - y) ** 2, axis=0))
+        pred = base + lobe_lookup(table, t[sub])
+        rms = np.sqrt(np.mean((pred - y[sub]) ** 2, axis=0))
         fits[name] = (table, base, seen, rms)
     chosen = param or min(LOBE_PARAMS, key=lambda k: float(np.mean(fits[k][3])))
     other = next(k for k in LOBE_PARAMS if k != chosen)
     table, base, seen, rms = fits[chosen]
-    rv = np.sum(geometry.refl * _unit(cam - geometry.pos), axis=-1)[::step, ::step][ok]
-    pos = rv > 0
-    if np.count_nonzero(pos) >= 20:
-        sub = np.flatnonzero(pos)[:: max(1, np.count_nonzero(pos) // 20000)]
+    if pos.size >= 20:
         rms_phong, rms_pl = _phong_rms(rv[sub], y[sub])
     else:
         rms_phong = rms_pl = np.full(3, np.nan)
