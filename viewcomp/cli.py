@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import sys
+import traceback
 from collections.abc import Sequence
 
 from viewcomp import __version__
+from viewcomp.calib.errors import ViewcompError
 
 # Order as shown in --help; each module has register(subparsers) and its run functions.
 COMMANDS = (
@@ -53,46 +56,64 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _known_errors() -> tuple[type[BaseException], ...]:
-    """Errors that carry a message for the user (cause and fix): no traceback for these."""
-    from viewcomp.calib.errors import FitError
-    from viewcomp.calib.io.bundle import BundleError
-    from viewcomp.calib.io.imageio import CaptureError
-    from viewcomp.calib.sim.simulator import SimulatorError
-    from viewcomp.calib.world.geometry import GeometryError
-    from viewcomp.calib.world.rig import RigError
-
-    errors: list[type[BaseException]] = [
-        BundleError, FitError, GeometryError, CaptureError, RigError, SimulatorError,
-    ]  # fmt: skip
-    try:
-        from viewcomp.rt.gl.context import GLUnavailable
-        from viewcomp.rt.media.video import VideoError
-        from viewcomp.rt.render.pipeline import ImageError
-        from viewcomp.rt.render.tracks import TrackError
-
-        errors += [GLUnavailable, ImageError, TrackError, VideoError]
-    except ImportError:  # the run-time part is optional for calibration-only installs
-        pass
-    return tuple(errors)
-
-
-class UsageError(Exception):
+class UsageError(ViewcompError):
     """A command-line value that is wrong: the message says which and what is expected."""
 
 
+# What to do about an operating-system error, by errno: these come from the machine (a full
+# disk, a read-only folder, a broken link), not from a bug, so they are reported as refusals.
+_OS_FIXES = {
+    errno.ENOSPC: "free some space on that disk, or write somewhere else",
+    errno.EDQUOT: "free some space within your disk quota, or write somewhere else",
+    errno.EROFS: "the file system is read-only: write somewhere else",
+    errno.EACCES: "check the permissions, or use a folder you can write to",
+    errno.EPERM: "check the permissions, or use a folder you can write to",
+    errno.ENOENT: "check the path (the folder must exist)",
+    errno.ENOTDIR: "check the path: a part of it is a file, not a folder",
+    errno.EISDIR: "give a file, not a folder",
+    errno.ELOOP: "the path is a loop of symbolic links: fix or remove the link",
+    errno.ENAMETOOLONG: "use a shorter path",
+}
+
+
+def os_error_message(exc: OSError) -> str:
+    """One line for an operating-system error: the file, the cause and what to do."""
+    where = f" {exc.filename}" if exc.filename else ""
+    cause = exc.strerror or str(exc)
+    fix = _OS_FIXES.get(exc.errno or 0, "check the path and the disk")
+    notes = "".join(f"; {n}" for n in getattr(exc, "__notes__", ()))
+    return f"cannot use{where}: {cause}{notes} - {fix}"
+
+
+BUG_NOTE = (
+    "this is a bug in viewcomp, not a problem with your input: please report it with the "
+    "command line and the traceback above"
+)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 a user error)."""
+    """Run the command line; returns the exit status.
+
+    0: done. 2: a refusal (a :class:`ViewcompError`, an operating-system error such as a
+    full disk, or a bad option): one line naming the thing at fault and the fix, nothing
+    written. 1: any other exception, which is a bug: its traceback and a note asking to
+    report it. 130: interrupted (Ctrl-C); partial outputs are removed as for an error.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
+    name = f"viewcomp {args.command}"
     try:
         return int(args.run(args) or 0)
-    except UsageError as e:
-        parser.exit(2, f"viewcomp {args.command}: error: {e}\n")
-    except _known_errors() as e:
-        print(f"viewcomp {args.command}: error: {e}", file=sys.stderr)
+    except ViewcompError as e:
+        print(f"{name}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"{name}: error: {os_error_message(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"viewcomp {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted", file=sys.stderr)
         return 130
-    return 0
+    except Exception:
+        traceback.print_exc()
+        print(f"{name}: internal error: {BUG_NOTE}", file=sys.stderr)
+        return 1

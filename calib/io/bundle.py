@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
 from viewcomp.calib.io.atomic import atomic_open
 
 SCHEMA_VERSION = 1
@@ -50,7 +51,7 @@ _ZIP_ERRORS = (
 )
 
 
-class BundleError(ValueError):
+class BundleError(ViewcompError, ValueError):
     """A calibration bundle that cannot be used; the message names file, cause and fix."""
 
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
 from viewcomp.calib.world.geometry import ScreenGeometry, irradiance_falloff
 from viewcomp.calib.world.response import Response, parse_response
 from viewcomp.calib.world.rig import Rig, default_rig
@@ -54,7 +55,7 @@ GLOSS_PRESETS: dict[str, tuple[float, float]] = {
 WHITE_ALBEDO = 0.85
 
 
-class SimulatorError(ValueError):
+class SimulatorError(ViewcompError, ValueError):
     """A simulator parameter is out of range or unknown."""
 
 

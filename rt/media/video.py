@@ -43,6 +43,7 @@ from typing import Any, Literal
 import av
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
 from viewcomp.calib.io.atomic import AtomicFile
 from viewcomp.rt.media.frames import ColorRange, Colorspace, Planes, fit_rect, pad_planes
 
@@ -66,7 +67,7 @@ _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1",
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
 
 
-class VideoError(RuntimeError):
+class VideoError(ViewcompError, RuntimeError):
     """A video cannot be read or written; the message names the file and the fix."""
 
 
