@@ -96,7 +96,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     0: done. 2: a refusal (a :class:`ViewcompError`, an operating-system error such as a
     full disk, or a bad option): one line naming the thing at fault and the fix, nothing
-    written. 1: any other exception, which is a bug: its traceback and a note asking to
+    written; a bad option (argparse's or a :class:`UsageError`) raises ``SystemExit(2)``
+    as argparse does. 1: any other exception, which is a bug: its traceback and a note asking to
     report it. 130: interrupted (Ctrl-C); partial outputs are removed as for an error.
     """
     parser = build_parser()
@@ -104,6 +105,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     name = f"viewcomp {args.command}"
     try:
         return int(args.run(args) or 0)
+    except UsageError as e:  # like argparse's own errors: SystemExit(2)
+        parser.exit(2, f"{name}: error: {e}\n")
     except ViewcompError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return 2

@@ -24,7 +24,7 @@ from viewcomp.calib.fit.pixel import (
     ScreenModel,
     calibrate_pixel,
 )
-from viewcomp.calib.io.bundle import BundleError, load_bundle, save_bundle
+from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
 from viewcomp.calib.world.eye import EyeError, check_angle, check_eye
@@ -111,7 +111,7 @@ class Calibration:
         Raises:
             BundleError: unreadable, corrupt, of another schema, or missing a part.
         """
-        arrays, meta = load_bundle(path)
+        arrays, meta = load_bundle(path, CALIBRATION_ARRAYS)
         try:
             rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
             g = ScreenGeometry(
