@@ -31,21 +31,21 @@ class EyeError(ViewcompError, ValueError):
     """A viewing angle, eye position or track outside the limits; names the value and fix."""
 
 
-def _finite(value: Any, what: str) -> float:
+def _finite(value: Any, what: str, fix: str) -> float:
     if isinstance(value, bool | str | bytes) or value is None:
-        raise EyeError(f"{what} must be a number, got {value!r:.40}")
+        raise EyeError(f"{what} must be a number, got {value!r:.40} - {fix}")
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise EyeError(f"{what} must be a number, got {value!r:.40}") from None
+        raise EyeError(f"{what} must be a number, got {value!r:.40} - {fix}") from None
     if not math.isfinite(v):
-        raise EyeError(f"{what} must be a finite number, got {v}")
+        raise EyeError(f"{what} must be a finite number, got {v} - {fix}")
     return v
 
 
 def check_angle(value: Any, what: str = "a viewing angle") -> float:
     """A viewing angle in degrees, finite and in [ANGLE_MIN, ANGLE_MAX]; else EyeError."""
-    v = _finite(value, what)
+    v = _finite(value, what, f"give degrees from {ANGLE_MIN:g} to {ANGLE_MAX:g}")
     if not ANGLE_MIN <= v <= ANGLE_MAX:
         raise EyeError(
             f"{what} is {v:g} degrees; it must be in [{ANGLE_MIN:g}, {ANGLE_MAX:g}] "
@@ -60,7 +60,7 @@ def check_eye(values: Sequence[Any] | np.ndarray, what: str = "an eye position")
     vals = list(np.asarray(values, dtype=object).ravel()) if not isinstance(values, str) else []
     if len(vals) != 3:
         raise EyeError(f"{what} is three numbers X,Y,Z in metres, got {values!r:.60}")
-    e = np.array([_finite(v, what) for v in vals], np.float64)
+    e = np.array([_finite(v, what, "give X,Y,Z in metres, e.g. 0.1,0.0,0.5") for v in vals])
     shown = ",".join(f"{v:g}" for v in e)
     if np.max(np.abs(e)) > EYE_LIMIT:
         raise EyeError(
@@ -87,7 +87,7 @@ def check_track(
     if t.ndim != 1 or t.shape != d.shape or not len(t):
         raise EyeError(f"{what} needs (seconds, degrees) rows, got shapes {t.shape}, {d.shape}")
     for i, (ti, di) in enumerate(zip(t, d, strict=True)):
-        _finite(ti, f"{what}: the time of row {i + 1}")
+        _finite(ti, f"{what}: the time of row {i + 1}", "give seconds")
         check_angle(di, f"{what}: the angle at {ti:g} s")
     if np.any(np.diff(t) <= 0):
         i = int(np.argmax(np.diff(t) <= 0))

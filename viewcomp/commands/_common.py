@@ -30,6 +30,69 @@ def nonnegative(text: str) -> float:
     return v
 
 
+def finite(text: str) -> float:
+    """An argparse type: a finite number."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return v
+
+
+def positive(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    v = finite(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return v
+
+
+def add_force_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--force``: replace an existing ``what`` folder whole instead of refusing."""
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace an existing {what} in OUT_DIR whole (without it a non-empty OUT_DIR "
+        "is refused)",
+    )
+
+
+def check_output_file(output: str, *inputs: str | None, make_parents: bool = False) -> None:
+    """Refuse an output file that is, or resolves to, an input or lies in an input folder;
+    a folder; or one whose folder is missing (unless ``make_parents``). OutputError."""
+    from viewcomp.calib.io.paths import check_output
+
+    check_output(output, [i for i in inputs if i], make_parents=make_parents)
+
+
+def check_output_folder(
+    out_dir: str, *inputs: str | None, force: bool | None = None, what: str = "folder"
+) -> None:
+    """Refuse an output folder that is a file, an input or inside one; with ``force`` given
+    (commands that replace their folder whole), a non-empty folder unless ``force``, and a
+    folder inside a capture set always. OutputError."""
+    from viewcomp.calib.errors import OutputError
+    from viewcomp.calib.io.captureset import RIG_FILE
+    from viewcomp.calib.io.paths import check_output
+
+    out = check_output(out_dir, [i for i in inputs if i], folder=True)
+    if force is None:
+        return
+    parent = out.resolve().parent
+    if (parent / RIG_FILE).is_file():
+        raise OutputError(
+            f"output folder {out} is inside the capture set {parent} (it has {RIG_FILE}): "
+            "writing there would replace its captures - choose a folder outside it"
+        )
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise OutputError(
+            f"output folder {out} already holds files: refusing to write into it - choose a "
+            f"new or empty folder, or give --force to replace the {what} there whole"
+        )
+
+
 def add_eye_arguments(
     p: argparse.ArgumentParser,
     *,

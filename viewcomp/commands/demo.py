@@ -39,8 +39,9 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.imageio import write_png
     from viewcomp.calib.sim.simulate import simulate_capture_set
     from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import Log, screen_colour
+    from viewcomp.commands._common import Log, check_output_folder, screen_colour
 
+    check_output_folder(args.out)
     log = Log()
     out = Path(args.out)
     caps = out / "captures"

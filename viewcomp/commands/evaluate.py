@@ -26,8 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.eval.run import run as run_eval
-    from viewcomp.commands._common import Log, parse_size
+    from viewcomp.commands._common import Log, check_output_folder, parse_size
 
+    check_output_folder(args.output)
     log = Log(args.quiet)
     size = parse_size(args.size) if args.size else None
     log(f"evaluating protocol {args.protocol} (seed {args.seed})")

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-from viewcomp.commands._common import add_simulator_arguments, parse_size, screen_colour
+from viewcomp.commands._common import (
+    add_force_argument,
+    add_simulator_arguments,
+    check_output_folder,
+    parse_size,
+    screen_colour,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -15,9 +21,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "that `viewcomp capture` would write for real hardware: rig.toml, white/ (ideal "
         "matte white screen) and screen/ (the real one). Seeded and reproducible.",
     )
-    p.add_argument("out_dir", help="capture-set folder to write (new, or an old capture set)")
+    p.add_argument(
+        "out_dir",
+        help="capture-set folder to write (new or empty; an old capture set with --force)",
+    )
     add_simulator_arguments(p, space=True)
     p.add_argument("--no-black", action="store_true", help="leave out the optional black captures")
+    add_force_argument(p, "capture set")
     p.set_defaults(run=run)
 
 
@@ -28,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.sim.simulator import simulation_rig
 
     screen = screen_colour(args.screen)
+    check_output_folder(args.out_dir, force=args.force, what="capture set")
     rig = simulation_rig()
     if args.size:
         w, h = parse_size(args.size)
