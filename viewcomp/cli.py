@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import errno
 import importlib
 import sys
 import traceback
 from collections.abc import Sequence
 
 from viewcomp import __version__
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import ViewcompError, describe_os_error
 
 # Order as shown in --help; each module has register(subparsers) and its run functions.
 COMMANDS = (
@@ -60,31 +59,6 @@ class UsageError(ViewcompError):
     """A command-line value that is wrong: the message says which and what is expected."""
 
 
-# What to do about an operating-system error, by errno: these come from the machine (a full
-# disk, a read-only folder, a broken link), not from a bug, so they are reported as refusals.
-_OS_FIXES = {
-    errno.ENOSPC: "free some space on that disk, or write somewhere else",
-    errno.EDQUOT: "free some space within your disk quota, or write somewhere else",
-    errno.EROFS: "the file system is read-only: write somewhere else",
-    errno.EACCES: "check the permissions, or use a folder you can write to",
-    errno.EPERM: "check the permissions, or use a folder you can write to",
-    errno.ENOENT: "check the path (the folder must exist)",
-    errno.ENOTDIR: "check the path: a part of it is a file, not a folder",
-    errno.EISDIR: "give a file, not a folder",
-    errno.ELOOP: "the path is a loop of symbolic links: fix or remove the link",
-    errno.ENAMETOOLONG: "use a shorter path",
-}
-
-
-def os_error_message(exc: OSError) -> str:
-    """One line for an operating-system error: the file, the cause and what to do."""
-    where = f" {exc.filename}" if exc.filename else ""
-    cause = exc.strerror or str(exc)
-    fix = _OS_FIXES.get(exc.errno or 0, "check the path and the disk")
-    notes = "".join(f"; {n}" for n in getattr(exc, "__notes__", ()))
-    return f"cannot use{where}: {cause}{notes} - {fix}"
-
-
 BUG_NOTE = (
     "this is a bug in viewcomp, not a problem with your input: please report it with the "
     "command line and the traceback above"
@@ -111,7 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{name}: error: {e}", file=sys.stderr)
         return 2
     except OSError as e:
-        print(f"{name}: error: {os_error_message(e)}", file=sys.stderr)
+        print(f"{name}: error: {describe_os_error(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"{name}: interrupted", file=sys.stderr)

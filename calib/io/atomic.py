@@ -50,6 +50,14 @@ def _umask() -> int:
     return mask
 
 
+def _name_target(exc: BaseException | None, path: Path, tmp: Path | None = None) -> None:
+    """Give an OSError without a file name (a write to a full disk), or with the temporary
+    file's, the target's name, so that its message says which output failed."""
+    if isinstance(exc, OSError) and (not exc.filename or str(exc.filename) == str(tmp)):
+        with contextlib.suppress(AttributeError):  # some subclasses' filename is read-only
+            exc.filename = str(path)
+
+
 def _fsync_dir(folder: Path) -> None:
     """Flush a folder's entries (a rename) to disk where the file system supports it."""
     flags = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
@@ -111,6 +119,7 @@ class AtomicFile:
             self._cleanup(cause)
 
     def _cleanup(self, cause: BaseException | None) -> None:
+        _name_target(cause, self.path, self.tmp)
         self._done = True
         try:
             self.tmp.unlink(missing_ok=True)
@@ -209,6 +218,10 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
                 _remove_tree(old, None)
             raise
     except BaseException as exc:
+        if isinstance(exc, OSError) and str(exc.filename or "").startswith(f"{tmp}{os.sep}"):
+            with contextlib.suppress(AttributeError):  # name the real file, not the temporary
+                exc.filename = str(target / Path(exc.filename).relative_to(tmp))
+        _name_target(exc, target)
         if tmp.exists():
             _remove_tree(tmp, exc)
         raise
