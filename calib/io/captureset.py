@@ -31,6 +31,7 @@ from viewcomp.calib.io.imageio import (
     write_npy,
     write_png,
 )
+from viewcomp.calib.io.paths import check_input_file, path_problem
 from viewcomp.calib.world.rig import Rig, load_rig, rig_to_toml
 
 REQUIRED = ("red", "green", "blue", "gray", "ramp")
@@ -93,7 +94,9 @@ def find_capture(directory: str | Path, sub: str, name: str) -> Path | None:
     be a guess).
     """
     folder = Path(directory) / sub
-    found = [folder / f"{name}{s}" for s in IMAGE_SUFFIXES if (folder / f"{name}{s}").is_file()]
+    # anything by that name counts (a folder, a broken link): reading it then says what it is
+    candidates = [folder / f"{name}{s}" for s in IMAGE_SUFFIXES]
+    found = [p for p in candidates if p.exists() or p.is_symlink()]
     if len(found) > 1:
         names = " and ".join(f"{sub}/{p.name}" for p in found)
         raise CaptureError(f"ambiguous: {names} both exist in {directory} - keep only one")
@@ -144,11 +147,18 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
     :class:`CaptureError` (or :class:`~viewcomp.calib.world.rig.RigError`) naming the file and fix.
     """
     root = Path(directory)
-    if not root.is_dir():
-        raise CaptureError(f"not found: capture set folder {root} - {_FIX}")
-    if not (root / RIG_FILE).is_file():
-        raise CaptureError(f"not found: {RIG_FILE} in {root} - the capture set needs it; {_FIX}")
-    rig = load_rig(root / RIG_FILE)
+    problem = path_problem(root)
+    if problem is None and not root.is_dir():
+        problem = "is a file, not a folder"
+    if problem is not None:
+        what = f"not found: capture set folder {root}" if problem == "not found" else (
+            f"capture set folder {root}: {problem}")  # fmt: skip
+        raise CaptureError(f"{what} - give the folder written by {_FIX}")
+    rig_file = root / RIG_FILE
+    if (problem := path_problem(rig_file)) is not None:
+        raise CaptureError(f"{problem}: {RIG_FILE} in {root} - the capture set needs it; {_FIX}")
+    check_input_file(rig_file, "the rig file", f"a {RIG_FILE} text file", CaptureError)
+    rig = load_rig(rig_file)
 
     files: dict[tuple[str, str], Path] = {}
     missing: list[str] = []

@@ -25,8 +25,9 @@ class InputFileError(ViewcompError, ValueError):
     """An input path that is not a usable file; the message names it, the cause and the fix."""
 
 
-def _lstat_cause(p: Path) -> str | None:
-    """Why ``p`` cannot be opened as a file, or None when it can be stat'ed."""
+def path_problem(p: Path) -> str | None:
+    """Why ``p`` cannot be used at all ("not found", "is a loop of symbolic links", ...), or
+    None when it exists (its kind is for the caller to check)."""
     try:
         p.stat()
     except OSError as exc:
@@ -55,7 +56,7 @@ def check_input_file(
     (e.g. ``"a PNG or JPEG file"``); both go into the message.
     """
     p = Path(path)
-    cause = _lstat_cause(p)
+    cause = path_problem(p)
     if cause is None:
         st = p.stat()
         if stat.S_ISDIR(st.st_mode):
