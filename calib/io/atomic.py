@@ -53,7 +53,9 @@ def _umask() -> int:
 def _name_target(exc: BaseException | None, path: Path, tmp: Path | None = None) -> None:
     """Give an OSError without a file name (a write to a full disk), or with the temporary
     file's, the target's name, so that its message says which output failed."""
-    if isinstance(exc, OSError) and (not exc.filename or str(exc.filename) == str(tmp)):
+    if not isinstance(exc, OSError) or exc.errno is None:
+        return  # not an error from the system: its message stays as it is
+    if not exc.filename or str(exc.filename) == str(tmp):
         with contextlib.suppress(AttributeError):  # some subclasses' filename is read-only
             exc.filename = str(path)
 
