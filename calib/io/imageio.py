@@ -111,6 +111,9 @@ def _check_dimensions(p: Path, w: int, h: int) -> None:
 def _header_size(p: Path, data: np.ndarray) -> tuple[int, int] | None:
     """(width, height) from the image's header, read without decoding the pixels; None when
     the format's header is not understood (OpenCV's decoder then has the last word)."""
+    head = data[:24].tobytes()
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":  # width, height at 16
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
     from PIL import Image
 
     try:

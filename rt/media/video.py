@@ -340,10 +340,7 @@ class VideoWriter:
         try:
             self._target = AtomicFile(self.path)
         except OSError as exc:
-            raise VideoError(
-                f"cannot write video {self.path}: {exc}; fix: write into an existing, writable "
-                "folder"
-            ) from exc
+            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
         self.tmp = self._target.tmp
         try:
             self.container = av.open(str(self.tmp), "w")

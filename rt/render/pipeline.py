@@ -43,7 +43,7 @@ import numpy as np
 from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import ViewcompError, describe_os_error
 from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
 from viewcomp.calib.model.reference import compensate
 from viewcomp.calib.model.runtime import RuntimeModel
@@ -402,4 +402,4 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     try:
         write_png(path, rgb)
     except OSError as exc:
-        raise ImageError(f"cannot write image {path}: {exc}") from exc
+        raise ImageError(f"cannot write image {describe_os_error(exc, path)}") from exc

@@ -44,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.errors import OutputError, describe_os_error
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.io.imageio import read_rgb8
@@ -79,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         write_text_atomic(args.output, text, encoding="ascii")
     except OSError as exc:
-        raise UsageError(f"cannot write {args.output}: {exc}") from None
+        raise OutputError(f"cannot write {describe_os_error(exc, args.output)}") from None
     w, h = info.grid
     where = "angle as //!PARAM" if info.param else (
         f"angle {info.angle:g} deg" if info.angle is not None else "fixed eye")  # fmt: skip
