@@ -373,6 +373,11 @@ CASES = [
         ["calibrate", "caps", "-o", "x.vcb", "--mixing-blur-px", "nan"],
         "finite number >= 0",
     ),
+    Case("seed-negative", ["simulate", "s", "--seed=-1"], "whole number >= 0"),
+    Case("screen-nan", ["simulate", "s", "--screen", "nan,0,0"], "R,G,B in 0..1"),
+    Case("screen-over-1", ["simulate", "s", "--screen", "2,2,2"], "R,G,B in 0..1"),
+    Case("size-huge", ["patterns", "p", "--size", "100000x100000"], "at most 16384 pixels"),
+    Case("size-tiny", ["simulate", "s", "--size", "0x5"], "at least 2x2"),
     # --- outputs that cannot be written
     Case(
         "video-into-missing-folder",

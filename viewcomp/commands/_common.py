@@ -41,6 +41,17 @@ def finite(text: str) -> float:
     return v
 
 
+def seed(text: str) -> int:
+    """An argparse type: an integer >= 0 (a random seed)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return v
+
+
 def positive(text: str) -> float:
     """An argparse type: a finite number > 0."""
     v = finite(text)
@@ -181,7 +192,7 @@ def add_simulator_arguments(
             "frames, rectified by calibrate (lens, chessboard, Gray code; slower) "
             "(default: projector)",
         )
-    p.add_argument("--seed", type=int, default=0, help="simulator noise seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="simulator noise seed (default 0)")
     if size is not None:
         p.add_argument(
             size,
@@ -206,6 +217,13 @@ def parse_size(text: str) -> tuple[int, int]:
         raise UsageError(f"a size is WIDTHxHEIGHT in pixels, e.g. 1280x720; got {text!r}") from None
     if w < 2 or h < 2:
         raise UsageError(f"a size needs at least 2x2 pixels, got {text!r}")
+    from viewcomp.calib.io.imageio import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
+
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE or w * h > MAX_IMAGE_PIXELS:
+        raise UsageError(
+            f"a size is at most {MAX_IMAGE_SIDE} pixels a side and "
+            f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels, got {text!r}"
+        )
     return w, h
 
 
@@ -226,7 +244,7 @@ def parse_rgb(text: str) -> tuple[float, float, float]:
         v = tuple(float(x) for x in text.split(","))
     except ValueError:
         raise UsageError(f"a screen colour is a name or R,G,B in 0..1; got {text!r}") from None
-    if len(v) != 3:
+    if len(v) != 3 or not all(math.isfinite(x) and 0.0 <= x <= 1.0 for x in v):
         raise UsageError(f"a screen colour is a name or R,G,B in 0..1; got {text!r}")
     return v  # type: ignore[return-value]
 
