@@ -772,10 +772,11 @@ def test_full_or_read_only_disk_leaves_nothing(
     small_fs: Callable[[str], Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    if command == "render-image" and kind == "full":
-        pytest.skip("a 96x48 PNG fits in any disk the test can mount; the video case covers it")
     shutil.copyfile(long_clip, here / "long.mp4")
     fs = small_fs("size=64k" if kind == "full" else "ro,size=1m")
+    if kind == "full":  # leave less room than the smallest output (a 96x48 PNG, ~14 KB)
+        st = os.statvfs(fs)
+        (fs / "filler").write_bytes(bytes(max(st.f_bavail * st.f_frsize - 8192, 0)))
     before, inside = _snapshot(here), _snapshot(fs)
     code = run_cli(DISK_CASES[command](fs))
     err = capsys.readouterr().err
