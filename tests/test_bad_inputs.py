@@ -308,6 +308,16 @@ CASES = [
         "inside the capture set",
     ),
     Case(
+        "patterns-over-capture-set",
+        ["patterns", "caps", "--size", "64x32", "--force"],
+        "is a capture set",
+    ),
+    Case(
+        "capture-over-its-rig-template",
+        ["capture", "caps", "--simulate", "--yes", "--force", "--rig", "caps/rig.toml"],
+        "is inside the output folder",
+    ),
+    Case(
         "patterns-into-non-empty-folder",
         ["patterns", "pats", "--size", "64x32"],
         "--force",

@@ -91,7 +91,7 @@ def check_output(
     Refused: an output that is an input (the same file through any link), an input folder or
     a path inside one; a file output that is an existing folder (``folder=False``) or whose
     folder does not exist (unless ``make_parents``: the writer creates it); a folder output
-    that is an existing file (``folder=True``); a loop of symbolic links.
+    that is an existing file or holds an input (``folder=True``); a loop of symbolic links.
     """
     out = Path(path)
     try:
@@ -114,6 +114,11 @@ def check_output(
             raise OutputError(
                 f"output {out} is inside the input folder {src}: writing there would change "
                 "the input - choose a path outside it"
+            )
+        if folder and src_resolved.is_relative_to(resolved):
+            raise OutputError(
+                f"the input {src} is inside the output folder {out}, which would be written "
+                "over - choose another output folder"
             )
         if not folder and out.is_dir() and _same(out, src.parent):
             raise OutputError(

@@ -83,7 +83,8 @@ def check_output_folder(
 ) -> None:
     """Refuse an output folder that is a file, an input or inside one; with ``force`` given
     (commands that replace their folder whole), a non-empty folder unless ``force``, and a
-    folder inside a capture set always. OutputError."""
+    folder inside a capture set (or, unless ``what`` is one, a capture set) always.
+    OutputError."""
     from viewcomp.calib.errors import OutputError
     from viewcomp.calib.io.captureset import RIG_FILE
     from viewcomp.calib.io.paths import check_output
@@ -96,6 +97,11 @@ def check_output_folder(
         raise OutputError(
             f"output folder {out} is inside the capture set {parent} (it has {RIG_FILE}): "
             "writing there would replace its captures - choose a folder outside it"
+        )
+    if what != "capture set" and (out / RIG_FILE).is_file():
+        raise OutputError(
+            f"output folder {out} is a capture set (it has {RIG_FILE}): writing the {what} "
+            "there would replace its captures - choose another folder"
         )
     if out.is_dir() and any(out.iterdir()) and not force:
         raise OutputError(
