@@ -110,8 +110,13 @@ def test_read_errors(tmp_path: Path) -> None:
     with pytest.raises(CaptureError, match=r"cannot decode .*junk\.png"):
         read_image(tmp_path / "junk.png")
     (tmp_path / "empty.png").write_bytes(b"")
-    with pytest.raises(CaptureError, match="cannot decode"):
+    with pytest.raises(CaptureError, match=r"empty\.png: is empty \(0 bytes\)"):
         read_image(tmp_path / "empty.png")
+    with pytest.raises(CaptureError, match="is a folder, not a file"):
+        read_image(tmp_path)
+    (tmp_path / "loop.png").symlink_to(tmp_path / "loop.png")
+    with pytest.raises(CaptureError, match="loop of symbolic links"):
+        read_image(tmp_path / "loop.png")
     cv2.imwrite(str(tmp_path / "f.tif"), np.zeros((4, 4, 3), np.float32))
     with pytest.raises(CaptureError, match=r"8- or 16-bit.*\.npy"):
         read_image(tmp_path / "f.tif")

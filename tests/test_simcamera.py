@@ -3,7 +3,6 @@ the projector-grid simulator, and the camera-space capture set."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 
 import cv2
@@ -115,20 +114,15 @@ def test_capture_is_8_bit_noisy_and_seeded() -> None:
     assert np.array_equal(a, b) and not np.array_equal(a, c)
 
 
-def test_full_size_render_is_fast() -> None:
+def test_full_size_render() -> None:
+    """A capture at the camera's full 1280x720 (its time: bench/bench_simcamera.py; tests
+    hold no timed assertions)."""
     rig = camera_rig(simulation_rig())
     cam = SimCamera(Simulator(rig=rig))
-    _ = cam.view  # the per-rig geometry, once
     w, h = rig.projector.resolution
-    gray = table1_patterns(w, h)["gray"]
-    screen = make_screen("magenta", "glossy")
-    cam.capture(screen, gray, "warm-up")
-    t0 = time.perf_counter()
-    for k in range(3):
-        out = cam.capture(screen, gray, f"k{k}")
-    per = (time.perf_counter() - t0) / 3
-    assert out.shape == (720, 1280, 3)
-    assert per < 1.0, f"a 1280x720 camera render took {per:.2f} s"
+    out = cam.capture(make_screen("magenta", "glossy"), table1_patterns(w, h)["gray"], "k")
+    assert out.shape == (720, 1280, 3) and out.dtype == np.uint8
+    assert 0 < out.mean() < 255
 
 
 def test_simulate_camera_set_writes_a_camera_space_set(tmp_path) -> None:

@@ -7,10 +7,12 @@ import importlib
 import logging
 import os
 import sys
+import traceback
 from collections.abc import Sequence
 from typing import Any
 
 from viewcomp import __version__
+from viewcomp.calib.errors import ViewcompError, describe_os_error
 
 # Order as shown in --help; each module has register(subparsers) and its run functions.
 COMMANDS = (
@@ -60,35 +62,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _known_errors() -> tuple[type[BaseException], ...]:
-    """Errors that carry a message for the user (cause and fix): no traceback for these."""
-    from viewcomp.calib.errors import FitError
-    from viewcomp.calib.io.bundle import BundleError
-    from viewcomp.calib.io.imageio import CaptureError
-    from viewcomp.calib.sim.materials import MaterialError
-    from viewcomp.calib.sim.simulator import SimulatorError
-    from viewcomp.calib.world.geometry import GeometryError
-    from viewcomp.calib.world.rig import RigError
-
-    errors: list[type[BaseException]] = [
-        BundleError, FitError, GeometryError, CaptureError, MaterialError, RigError,
-        SimulatorError,
-    ]  # fmt: skip
-    try:
-        from viewcomp.rt.gl.context import GLUnavailable
-        from viewcomp.rt.media.video import VideoError
-        from viewcomp.rt.render.pipeline import ImageError
-        from viewcomp.rt.render.tracks import TrackError
-        from viewcomp.rt.track.source import SourceError
-
-        errors += [GLUnavailable, ImageError, TrackError, VideoError, SourceError]
-    except ImportError:  # the run-time part is optional for calibration-only installs
-        pass
-    return tuple(errors)
-
-
-class UsageError(Exception):
+class UsageError(ViewcompError):
     """A command-line value that is wrong: the message says which and what is expected."""
+
+
+BUG_NOTE = (
+    "this is a bug in viewcomp, not a problem with your input: please report it with the "
+    "command line and the traceback above"
+)
 
 
 class _StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
@@ -125,19 +106,33 @@ def _own_words_only(command: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 a user error)."""
+    """Run the command line; returns the exit status.
+
+    0: done. 2: a refusal (a :class:`ViewcompError`, an operating-system error such as a
+    full disk, or a bad option): one line naming the thing at fault and the fix, nothing
+    written; a bad option (argparse's or a :class:`UsageError`) raises ``SystemExit(2)``
+    as argparse does. 1: any other exception, which is a bug: its traceback and a note asking to
+    report it. 130: interrupted (Ctrl-C); partial outputs are removed as for an error.
+    """
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # before anything imports cv2
     parser = build_parser()
     args = parser.parse_args(argv)
     _own_words_only(args.command)
+    name = f"viewcomp {args.command}"
     try:
         return int(args.run(args) or 0)
-    except UsageError as e:
-        parser.exit(2, f"viewcomp {args.command}: error: {e}\n")
-    except _known_errors() as e:
-        print(f"viewcomp {args.command}: error: {e}", file=sys.stderr)
+    except UsageError as e:  # like argparse's own errors: SystemExit(2)
+        parser.exit(2, f"{name}: error: {e}\n")
+    except ViewcompError as e:
+        print(f"{name}: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"{name}: error: {describe_os_error(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"viewcomp {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted", file=sys.stderr)
         return 130
-    return 0
+    except Exception:
+        traceback.print_exc()
+        print(f"{name}: internal error: {BUG_NOTE}", file=sys.stderr)
+        return 1

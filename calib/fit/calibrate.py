@@ -27,10 +27,11 @@ from viewcomp.calib.fit.pixel import (
     ScreenModel,
     calibrate_pixel,
 )
-from viewcomp.calib.io.bundle import BundleError, load_bundle, save_bundle
+from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
 from viewcomp.calib.model.lobe import LOBE_N, LOBE_PARAMS
+from viewcomp.calib.world.eye import EyeError, check_angle, check_eye
 from viewcomp.calib.world.geometry import ScreenGeometry
 from viewcomp.calib.world.rig import Rig, rig_from_dict, rig_to_toml
 
@@ -68,18 +69,13 @@ class Calibration:
             )
 
     def eye(self, angle: float | None = None, eye: np.ndarray | None = None) -> np.ndarray:
-        """An eye position from an angle (the rig's viewer distance and height) or as given."""
+        """An eye position from an angle (the rig's viewer distance and height) or as given,
+        both checked against the limits of :mod:`viewcomp.calib.world.eye` (EyeError)."""
         if eye is not None:
-            e = np.asarray(eye, np.float64)
-            if e.shape != (3,) or not np.all(np.isfinite(e)):
-                raise ValueError(f"an eye position is three finite numbers X,Y,Z, got {eye!r}")
-            if e[2] <= 0:
-                raise ValueError(f"the eye must be in front of the screen (z > 0), got {eye!r}")
-            return e
+            return check_eye(eye)
         if angle is None:
-            raise ValueError("give a viewing angle or an eye position")
-        if not 0.0 < angle < 180.0:
-            raise ValueError(f"a viewing angle is in (0, 180) degrees, got {angle}")
+            raise EyeError("give a viewing angle or an eye position")
+        angle = check_angle(angle)
         return self.rig.viewer.eye(angle)
 
     # -- the bundle ------------------------------------------------------------------------
@@ -147,7 +143,7 @@ class Calibration:
         Raises:
             BundleError: unreadable, corrupt, of another schema, or missing a part.
         """
-        arrays, meta = load_bundle(path)
+        arrays, meta = load_bundle(path, CALIBRATION_ARRAYS)
         try:
             rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
             g = ScreenGeometry(

@@ -14,6 +14,9 @@ note, never raised in its place.
 - :func:`write_bytes_atomic`, :func:`write_text_atomic`: one call for data held in memory.
 - :class:`AtomicFile`: the same steps for writers whose start and end are separate calls
   (a video encoder's ``close``/``abort``).
+- :func:`atomic_dir`: a whole folder (a capture set, the patterns): written into a hidden
+  temporary folder next to it, which then replaces the old folder whole, so no file of an
+  old set survives and a failure leaves the old folder as it was.
 
 The target's folder must exist.
 """
@@ -23,6 +26,8 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import shutil
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -43,6 +48,16 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def _name_target(exc: BaseException | None, path: Path, tmp: Path | None = None) -> None:
+    """Give an OSError without a file name (a write to a full disk), or with the temporary
+    file's, the target's name, so that its message says which output failed."""
+    if not isinstance(exc, OSError) or exc.errno is None:
+        return  # not an error from the system: its message stays as it is
+    if not exc.filename or str(exc.filename) == str(tmp):
+        with contextlib.suppress(AttributeError):  # some subclasses' filename is read-only
+            exc.filename = str(path)
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -106,6 +121,7 @@ class AtomicFile:
             self._cleanup(cause)
 
     def _cleanup(self, cause: BaseException | None) -> None:
+        _name_target(cause, self.path, self.tmp)
         self._done = True
         try:
             self.tmp.unlink(missing_ok=True)
@@ -155,3 +171,62 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, encoding: str = "
     """Write ``text`` to ``path`` atomically (encoded with ``encoding``)."""
     data = text.encode(encoding)  # an encoding error is raised before any file is made
     write_bytes_atomic(path, data)
+
+
+def _remove_tree(folder: Path, cause: BaseException | None) -> None:
+    """Remove ``folder`` and everything in it; a failure becomes a note on ``cause`` (the
+    error being handled), or is ignored when there is none (the result is committed)."""
+    errors: list[str] = []
+
+    def record(_func: object, where: str, exc: object) -> None:
+        errors.append(f"{where}: {exc[1] if isinstance(exc, tuple) else exc}")
+
+    if sys.version_info >= (3, 12):
+        shutil.rmtree(folder, onexc=record)
+    else:  # Python 3.11 names the hook onerror (deprecated since 3.12)
+        shutil.rmtree(folder, onerror=record)
+    if errors and cause is not None:
+        cause.add_note(f"the temporary folder {folder} could not be removed: {errors[0]}")
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary folder next to ``path`` to write a whole folder into; when the block ends
+    without an error it replaces ``path`` (whole: nothing of an old folder survives), on any
+    error it is removed and ``path`` is left as it was.
+
+    The swap is two renames (old folder aside, new folder in place); a failure between them
+    puts the old folder back. Files inside are best written with the other helpers here.
+    The folder of ``path`` is created when missing.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; give the usual mode
+        _fsync_dir(tmp)
+        old = None
+        if target.exists() or target.is_symlink():
+            old = Path(
+                tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent)
+            )
+            os.replace(target, old / "old")
+        try:
+            os.replace(tmp, target)
+        except BaseException:
+            if old is not None:
+                os.replace(old / "old", target)
+                _remove_tree(old, None)
+            raise
+    except BaseException as exc:
+        if isinstance(exc, OSError) and str(exc.filename or "").startswith(f"{tmp}{os.sep}"):
+            with contextlib.suppress(AttributeError):  # name the real file, not the temporary
+                exc.filename = str(target / Path(exc.filename).relative_to(tmp))
+        _name_target(exc, target)
+        if tmp.exists():
+            _remove_tree(tmp, exc)
+        raise
+    _fsync_dir(target.parent)
+    if old is not None:
+        _remove_tree(old, None)

@@ -14,18 +14,23 @@ validates the whole file before returning anything.
 
 from __future__ import annotations
 
-import io
 import json
+import math
 import re
 import struct
 import zipfile
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.io import npy
 from viewcomp.calib.io.atomic import atomic_open
+from viewcomp.calib.io.npy import MAX_ARRAY_BYTES
+from viewcomp.calib.io.paths import InputFileError, check_input_file
 
 SCHEMA_VERSION = 2
 FORMAT = "viewcomp-bundle"
@@ -50,7 +55,7 @@ _ZIP_ERRORS = (
 )
 
 
-class BundleError(ValueError):
+class BundleError(ViewcompError, ValueError):
     """A calibration bundle that cannot be used; the message names file, cause and fix."""
 
 
@@ -96,21 +101,153 @@ def _fail(p: Path, cause: str, fix: str) -> BundleError:
     return BundleError(f"{p}: {cause} - {fix}")
 
 
-def load_bundle(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+@dataclass(frozen=True)
+class ArrayRule:
+    """What one array of a bundle may be, checked by :func:`load_bundle`.
+
+    ``shape``: each axis an int, ``"H"``/``"W"`` (the projector grid from the bundle's own
+    rig) or ``"*"`` (any length); ``kinds``: the numpy dtype kinds allowed (``"f"`` float);
+    ``low``/``high``: the range of the values (besides being finite).
+    """
+
+    shape: tuple[int | str, ...]
+    kinds: str = "f"
+    low: float = -math.inf
+    high: float = math.inf
+
+
+# The arrays of a calibration bundle (viewcomp.calib.fit.calibrate.Calibration): one line
+# per array. Arrays without a line get the generic checks only (size cap, finite floats).
+CALIBRATION_ARRAYS: dict[str, ArrayRule] = {
+    "geometry.pos": ArrayRule(("H", "W", 3)),
+    "geometry.refl": ArrayRule(("H", "W", 3), low=-1.001, high=1.001),  # unit vectors
+    "paper.n": ArrayRule((3,)),
+    "paper.means_c": ArrayRule((4, 3)),
+    "paper.ramp_cols_c": ArrayRule(("W", 3)),
+    "paper.w_tilde_w": ArrayRule((3, 3)),
+    "paper.rho_w": ArrayRule((256, 3)),
+    "paper.ksis": ArrayRule((3,)),
+    "paper.gamma": ArrayRule((3,)),
+    "paper.stat_mask": ArrayRule(("H", "W"), kinds="u", low=0, high=1),
+    "pixel.f_lut": ArrayRule((256, 3), low=-0.001, high=1.001),  # normalised response
+    "pixel.Ww": ArrayRule(("H", "W", 3, 3)),
+    "pixel.Aw": ArrayRule(("H", "W", 3)),
+    "pixel.Wc": ArrayRule(("H", "W", 3, 3)),
+    "pixel.Ac": ArrayRule(("H", "W", 3)),
+    "pixel.lobe": ArrayRule(("*", 3), low=0.0),  # the tabulated lobe (units of s)
+    "pixel.baseline": ArrayRule((3,)),
+    "pixel.black_share": ArrayRule((3,), low=0.0, high=1.0),
+}
+
+MAX_MEMBERS = 256  # members of one bundle
+MAX_META_BYTES = 16 << 20  # meta.json: the rig's text and the fit statistics
+MAX_BUNDLE_BYTES = 8 << 30  # all arrays together, as declared before reading any
+_MAX_NPY_HEADER = 1 << 16  # bytes of a .npy header (numpy's own limit is 10000)
+
+
+def _grid(p: Path, user_meta: dict[str, Any]) -> dict[str, int]:
+    """{"H": h, "W": w}: the projector grid of the rig the bundle's meta holds."""
+    import tomllib
+
+    try:
+        rig = tomllib.loads(user_meta["rig"])
+        w, h = rig["projector"]["resolution"]
+        if not all(isinstance(v, int) and 0 < v <= 65536 for v in (w, h)):
+            raise ValueError(f"resolution {w}x{h}")
+    except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
+        raise _fail(
+            p, f"its rig has no usable projector resolution ({exc})", _RECALIBRATE
+        ) from None
+    return {"H": h, "W": w}
+
+
+def _listed_spec(p: Path, name: str, spec: Any) -> tuple[np.dtype, tuple[int, ...], int]:
+    """(dtype, shape, bytes) of one array as meta.json lists it, checked against the caps."""
+    try:
+        dtype = np.dtype(spec["dtype"])
+        shape = tuple(spec["shape"])
+        if dtype.hasobject or not all(isinstance(n, int) and n >= 0 for n in shape):
+            raise ValueError(spec)
+    except (KeyError, TypeError, ValueError):
+        raise _fail(
+            p, f"{META_MEMBER} lists array {name!r} as {spec!r:.80}", _RECALIBRATE
+        ) from None
+    nbytes = math.prod(shape) * dtype.itemsize
+    if nbytes > MAX_ARRAY_BYTES:
+        raise _fail(
+            p,
+            f"{META_MEMBER} lists array {name!r} as {dtype.str} {list(shape)}: "
+            f"{nbytes / 2**30:.1f} GiB, over the {MAX_ARRAY_BYTES / 2**30:g} GiB limit",
+            _RECALIBRATE,
+        )
+    return dtype, shape, nbytes
+
+
+def _check_rule(
+    p: Path, name: str, dtype: np.dtype, shape: tuple[int, ...], rule: ArrayRule, dims: dict
+) -> None:
+    want = tuple(dims.get(a, a) if isinstance(a, str) else a for a in rule.shape)
+    fits = len(want) == len(shape) and all(
+        w == "*" or w == n for w, n in zip(want, shape, strict=True)
+    )
+    if dtype.kind not in rule.kinds or not fits:
+        shown = "x".join(str(a) for a in want)
+        raise _fail(
+            p,
+            f"array {name!r} is {dtype.str} {list(shape)}, but a calibration for this rig's "
+            f"{dims.get('W')}x{dims.get('H')} projector needs a {rule.kinds!r}-kind array of "
+            f"shape {shown}",
+            _RECALIBRATE,
+        )
+
+
+def _check_values(p: Path, name: str, a: np.ndarray, rule: ArrayRule | None) -> None:
+    if a.dtype.kind not in "fc":
+        return
+    finite = np.isfinite(a)
+    if not finite.all():
+        raise _fail(
+            p,
+            f"array {name!r} holds {int(a.size - np.count_nonzero(finite))} NaN or infinite "
+            "value(s)",
+            _RECALIBRATE,
+        )
+    if rule is not None and a.size and (a.min() < rule.low or a.max() > rule.high):
+        raise _fail(
+            p,
+            f"array {name!r} has values from {a.min():g} to {a.max():g}, outside "
+            f"[{rule.low:g}, {rule.high:g}]",
+            _RECALIBRATE,
+        )
+
+
+def load_bundle(
+    path: str | Path, rules: dict[str, ArrayRule] | None = None
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Read a calibration bundle: (arrays, meta), with meta as given to :func:`save_bundle`.
 
-    Everything is checked before anything is returned: the zip's structure and every
-    member's CRC, meta.json, the format, the schema version (a newer or unknown schema is
-    refused), and that each array listed in meta.json is present with its dtype and shape.
+    Everything is checked before anything is returned, and every size before the data it
+    sizes is read: the zip listing (member count and names, each member's declared size
+    against what meta.json lists, caps on meta.json, on each array and on all of them),
+    meta.json (format, schema version: a newer or unknown one is refused), each ``.npy``
+    header against meta.json (dtype, shape) and against ``rules`` (for a calibration,
+    :data:`CALIBRATION_ARRAYS`: shapes from the bundle's own rig); then each member's CRC and
+    values (finite, in the rule's range). Nothing is ever decompressed beyond the size its
+    listing declares, so a zip bomb is refused before it is inflated.
     Raises :class:`BundleError` naming the file, the cause and the fix.
     """
     p = Path(path)
-    if not p.exists():
+    if not p.exists() and not p.is_symlink():
         raise _fail(
             p, "not found", f"give the file written by `viewcomp calibrate`, or {_RECALIBRATE}"
         )
-    if not p.is_file():
-        raise _fail(p, "is not a file", "give the bundle file written by `viewcomp calibrate`")
+    try:
+        check_input_file(p, "bundle", "the bundle file written by `viewcomp calibrate`")
+    except InputFileError as exc:
+        cause = str(exc).split(": ", 1)[1].rsplit(" - ", 1)[0]
+        if cause == "is a folder, not a file":
+            cause = "is not a file (a folder)"
+        raise _fail(p, cause, "give the bundle file written by `viewcomp calibrate`") from None
     with p.open("rb") as fh:
         head = fh.read(4)
     if not zipfile.is_zipfile(p):
@@ -125,26 +262,87 @@ def load_bundle(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]
             fix = "give the file written by `viewcomp calibrate`"
         raise _fail(p, cause, fix)
 
-    members: dict[str, bytes] = {}
     current = "the zip directory"
     try:
         with zipfile.ZipFile(p, "r") as zf:
-            for info in zf.infolist():
-                current = info.filename
-                members[info.filename] = zf.read(info)  # checks the CRC of each member
+            infos = zf.infolist()
+            if len(infos) > MAX_MEMBERS:
+                raise _fail(p, f"{len(infos)} members, more than a bundle has", _RECALIBRATE)
+            by_name = {i.filename: i for i in infos}
+            if len(by_name) != len(infos):
+                raise _fail(p, "a member name appears twice", _RECALIBRATE)
+            if META_MEMBER not in by_name:
+                raise _fail(
+                    p,
+                    f"no {META_MEMBER} inside, so not a viewcomp calibration bundle",
+                    "give the file written by `viewcomp calibrate`",
+                )
+            current = META_MEMBER
+            meta_info = by_name[META_MEMBER]
+            if meta_info.file_size > MAX_META_BYTES:
+                raise _fail(
+                    p,
+                    f"{META_MEMBER} declares {meta_info.file_size} bytes, over the "
+                    f"{MAX_META_BYTES >> 20} MiB a bundle's meta.json can be",
+                    _RECALIBRATE,
+                )
+            doc = _parse_meta(p, zf.read(meta_info))
+            listing, user_meta = doc["arrays"], doc["meta"]
+            specs = {name: _listed_spec(p, name, spec) for name, spec in listing.items()}
+            total = sum(s[2] for s in specs.values())
+            if total > MAX_BUNDLE_BYTES:
+                raise _fail(
+                    p,
+                    f"{META_MEMBER} lists {total / 2**30:.1f} GiB of arrays, over the "
+                    f"{MAX_BUNDLE_BYTES / 2**30:g} GiB limit",
+                    _RECALIBRATE,
+                )
+            rules = rules or {}
+            if any(name in rules for name in specs):
+                dims = _grid(p, user_meta)
+                for name, (dtype, shape, _) in specs.items():
+                    if name in rules:
+                        _check_rule(p, name, dtype, shape, rules[name], dims)
+            expected = {f"{name}.npy" for name in listing} | {META_MEMBER}
+            unlisted = sorted(set(by_name) - expected)
+            if unlisted:
+                raise _fail(
+                    p, f"members not listed in {META_MEMBER}: {', '.join(unlisted)}", _RECALIBRATE
+                )
+            for name, (_, _, nbytes) in specs.items():
+                member = f"{name}.npy"
+                if member not in by_name:
+                    raise _fail(
+                        p,
+                        f"array {name!r} is listed in {META_MEMBER} but {member} is missing",
+                        _RECALIBRATE,
+                    )
+                info = by_name[member]
+                if info.file_size > nbytes + _MAX_NPY_HEADER:
+                    raise _fail(
+                        p,
+                        f"member {member} declares {info.file_size} bytes, but {META_MEMBER} "
+                        f"lists {listing[name]} ({nbytes} bytes)",
+                        _RECALIBRATE,
+                    )
+            arrays: dict[str, np.ndarray] = {}
+            for name, (dtype, shape, _) in specs.items():
+                current = f"{name}.npy"
+                arrays[name] = _read_member(p, zf, by_name[current], listing[name], dtype, shape)
+                _check_values(p, name, arrays[name], rules.get(name))
+    except BundleError:
+        raise
     except _ZIP_ERRORS as exc:
         raise _fail(
             p, f"damaged: cannot read {current} ({exc})", f"copy the file again, or {_RECALIBRATE}"
         ) from None
+    return arrays, user_meta
 
-    if META_MEMBER not in members:
-        raise _fail(
-            p,
-            f"no {META_MEMBER} inside, so not a viewcomp calibration bundle",
-            "give the file written by `viewcomp calibrate`",
-        )
+
+def _parse_meta(p: Path, data: bytes) -> dict[str, Any]:
+    """meta.json's document, checked: format, schema, an 'arrays' and a 'meta' table."""
     try:
-        doc = json.loads(members[META_MEMBER].decode("utf-8"))
+        doc = json.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise _fail(p, f"{META_MEMBER} is not valid JSON ({exc})", _RECALIBRATE) from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
@@ -172,37 +370,46 @@ def load_bundle(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]
         raise _fail(
             p, f"unknown schema {schema}; this viewcomp reads schema {SCHEMA_VERSION}", _RECALIBRATE
         )
-    listing = doc.get("arrays")
-    user_meta = doc.get("meta")
-    if not isinstance(listing, dict) or not isinstance(user_meta, dict):
+    if not isinstance(doc.get("arrays"), dict) or not isinstance(doc.get("meta"), dict):
         raise _fail(p, f"{META_MEMBER} lacks its 'arrays' or 'meta' table", _RECALIBRATE)
+    return doc
 
-    expected = {f"{name}.npy" for name in listing} | {META_MEMBER}
-    unlisted = sorted(set(members) - expected)
-    if unlisted:
-        raise _fail(p, f"members not listed in {META_MEMBER}: {', '.join(unlisted)}", _RECALIBRATE)
-    arrays: dict[str, np.ndarray] = {}
-    for name, spec in listing.items():
-        member = f"{name}.npy"
-        if member not in members:
+
+def _read_member(
+    p: Path,
+    zf: zipfile.ZipFile,
+    info: zipfile.ZipInfo,
+    spec: Any,
+    dtype: np.dtype,
+    shape: tuple[int, ...],
+) -> np.ndarray:
+    """One array member: its header is compared with meta.json's listing before its data is
+    read; the data is read to its declared end, so the member's CRC is checked."""
+    member = info.filename
+    with zf.open(info) as f:
+        try:
+            got_shape, got_dtype = npy.read_header(f)
+        except ValueError as exc:
+            raise _fail(p, f"damaged member {member} ({exc})", _RECALIBRATE) from None
+        if got_dtype != dtype or got_shape != shape or got_dtype.str != spec.get("dtype"):
             raise _fail(
                 p,
-                f"array {name!r} is listed in {META_MEMBER} but {member} is missing",
+                f"member {member} is {got_dtype.str} {list(got_shape)}, but {META_MEMBER} says "
+                f"{spec}",
+                _RECALIBRATE,
+            )
+        nbytes = math.prod(shape) * dtype.itemsize
+        if info.file_size != f.tell() + nbytes:
+            raise _fail(
+                p,
+                f"member {member} declares {info.file_size} bytes, but its header says "
+                f"{dtype.str} {list(shape)} ({f.tell() + nbytes} bytes with the header)",
                 _RECALIBRATE,
             )
         try:
-            a = np.lib.format.read_array(io.BytesIO(members[member]), allow_pickle=False)
-        except (ValueError, EOFError, OSError) as exc:
+            a = npy.read_data(f, shape, dtype)
+        except ValueError as exc:
             raise _fail(p, f"damaged member {member} ({exc})", _RECALIBRATE) from None
-        if (
-            not isinstance(spec, dict)
-            or spec.get("dtype") != a.dtype.str
-            or spec.get("shape") != list(a.shape)
-        ):
-            raise _fail(
-                p,
-                f"member {member} is {a.dtype.str} {list(a.shape)}, but {META_MEMBER} says {spec}",
-                _RECALIBRATE,
-            )
-        arrays[name] = a
-    return arrays, user_meta
+        if f.read(1):  # never true after the size check; reading to the end checks the CRC
+            raise _fail(p, f"damaged member {member} (data after the array)", _RECALIBRATE)
+    return a

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.io.atomic import atomic_open
+from viewcomp.calib.io.atomic import atomic_dir, atomic_open
 from viewcomp.calib.io.imageio import (
     IMAGE_SUFFIXES,
     CaptureError,
@@ -32,6 +32,7 @@ from viewcomp.calib.io.imageio import (
     write_npy,
     write_png,
 )
+from viewcomp.calib.io.paths import check_input_file, path_problem
 from viewcomp.calib.world.rig import Rig, load_rig, rig_to_toml
 
 REQUIRED = ("red", "green", "blue", "gray", "ramp")
@@ -104,7 +105,9 @@ def find_capture(directory: str | Path, sub: str, name: str) -> Path | None:
     be a guess).
     """
     folder = Path(directory) / sub
-    found = [folder / f"{name}{s}" for s in IMAGE_SUFFIXES if (folder / f"{name}{s}").is_file()]
+    # anything by that name counts (a folder, a broken link): reading it then says what it is
+    candidates = [folder / f"{name}{s}" for s in IMAGE_SUFFIXES]
+    found = [p for p in candidates if p.exists() or p.is_symlink()]
     if len(found) > 1:
         names = " and ".join(f"{sub}/{p.name}" for p in found)
         raise CaptureError(f"ambiguous: {names} both exist in {directory} - keep only one")
@@ -155,11 +158,18 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
     :class:`CaptureError` (or :class:`~viewcomp.calib.world.rig.RigError`) naming the file and fix.
     """
     root = Path(directory)
-    if not root.is_dir():
-        raise CaptureError(f"not found: capture set folder {root} - {_FIX}")
-    if not (root / RIG_FILE).is_file():
-        raise CaptureError(f"not found: {RIG_FILE} in {root} - the capture set needs it; {_FIX}")
-    rig = load_rig(root / RIG_FILE)
+    problem = path_problem(root)
+    if problem is None and not root.is_dir():
+        problem = "is a file, not a folder"
+    if problem is not None:
+        what = f"not found: capture set folder {root}" if problem == "not found" else (
+            f"capture set folder {root}: {problem}")  # fmt: skip
+        raise CaptureError(f"{what} - give the folder written by {_FIX}")
+    rig_file = root / RIG_FILE
+    if (problem := path_problem(rig_file)) is not None:
+        raise CaptureError(f"{problem}: {RIG_FILE} in {root} - the capture set needs it; {_FIX}")
+    check_input_file(rig_file, "the rig file", f"a {RIG_FILE} text file", CaptureError)
+    rig = load_rig(rig_file)
 
     files: dict[tuple[str, str], Path] = {}
     missing: list[str] = []
@@ -254,11 +264,13 @@ def write_capture_set(
     ``white`` and ``screen`` map names to (H, W, 3) arrays: uint8/uint16 encoded camera values
     (written as PNG) or float32 linear values (written as ``.npy``). Both must hold every name
     of REQUIRED; ``black`` must be in both or neither; other names (chessboard, graycode_XX)
-    are written as extras. Sizes are checked as :func:`read_capture_set` does. Other files of
-    a known name with another suffix are removed, so the set reads back unambiguously.
+    are written as extras. Sizes are checked as :func:`read_capture_set` does.
 
-    The folder is created if needed. A non-empty folder without rig.toml is refused, so
-    nothing that is not a capture set is overwritten. Returns the written paths.
+    The set is written into a temporary folder that then replaces ``directory`` whole
+    (:func:`~viewcomp.calib.io.atomic.atomic_dir`): an old capture set there leaves no file
+    behind, and a failure (disk full, interrupted) leaves the old folder as it was. A
+    non-empty folder without rig.toml is refused, so nothing that is not a capture set is
+    replaced. Returns the written paths.
     """
     root = Path(directory)
     if root.exists() and not root.is_dir():
@@ -278,33 +290,30 @@ def write_capture_set(
         for name, img in images.items():
             first = _same_size(f"{sub}/{name}", np.asarray(img), rig, first)
 
+    with atomic_dir(root) as staging:
+        written = _write_files(staging, rig, white, screen)
+    return [root / p.relative_to(staging) for p in written]
+
+
+def _write_files(
+    folder: Path, rig: Rig, white: Mapping[str, np.ndarray], screen: Mapping[str, np.ndarray]
+) -> list[Path]:
+    """Write rig.toml and the images into the (new, empty) ``folder``; returns the paths."""
     written: list[Path] = []
-    root.mkdir(parents=True, exist_ok=True)
-    rig_path = root / RIG_FILE
+    rig_path = folder / RIG_FILE
     with atomic_open(rig_path) as f:
         f.write(rig_to_toml(rig).encode("utf-8"))
     written.append(rig_path)
-    known = set(REQUIRED) | set(OPTIONAL)
     for sub, images in (("white", white), ("screen", screen)):
-        folder = root / sub
-        folder.mkdir(exist_ok=True)
+        (folder / sub).mkdir()
         for name, img in images.items():
             a = np.asarray(img)
-            suffix = ".npy" if a.dtype == np.float32 else ".png"
-            target = folder / f"{name}{suffix}"
-            for s in IMAGE_SUFFIXES:
-                stale = folder / f"{name}{s}"
-                if s != suffix and stale.is_file():
-                    stale.unlink()
-            if suffix == ".npy":
+            target = folder / sub / f"{name}{'.npy' if a.dtype == np.float32 else '.png'}"
+            if target.suffix == ".npy":
                 write_npy(target, a)
             else:
                 write_png(target, a)
             written.append(target)
-        # a known capture that the new set lacks (black) must not survive from an old set
-        for name in known - set(images):
-            for s in IMAGE_SUFFIXES:
-                (folder / f"{name}{s}").unlink(missing_ok=True)
     return written
 
 

@@ -50,3 +50,33 @@ def check_captures(cs: CaptureSet) -> None:
                 "camera's exposure or darken the room less, and capture again; if a highlight "
                 "forces the exposure down, capture with --hdr",
             )
+        _check_colours_against_gray(cs, sub)
+
+
+def _check_colours_against_gray(cs: CaptureSet, sub: str) -> None:
+    """Each colour pattern of Table 1 (130 in its own channel, 110 in the others) is brighter
+    than gray (110 everywhere) in its own channel on any screen. When all three are not,
+    the gray capture is the odd one; when one is not, that pair is named."""
+    images = cs.images(sub)
+    gray = images["gray"].reshape(-1, 3).mean(axis=0)
+    diffs = {
+        name: float(images[name].reshape(-1, 3).mean(axis=0)[j] - gray[j])
+        for j, name in enumerate(("red", "green", "blue"))
+    }
+    bad = [name for name, d in diffs.items() if d <= 1e-6]
+    if len(bad) == 3:
+        raise FitError(
+            f"{sub}/gray",
+            "it is as bright as or brighter than red, green and blue in their own channels, so "
+            "it is not a capture of the gray pattern (110,110,110) at the set's exposure - "
+            f"capture {sub}/gray again with the gray pattern projected and the exposure locked",
+        )
+    if bad:
+        name = bad[0]
+        raise FitError(
+            f"{sub}/{name}",
+            f"not brighter than {sub}/gray in its own channel (difference {diffs[name]:.2g}): "
+            f"one of {sub}/{name} and {sub}/gray is not the pattern it is named for, or the "
+            "exposure or white balance changed between them - capture both again with the "
+            "camera's exposure and white balance locked",
+        )

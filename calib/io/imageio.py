@@ -11,18 +11,27 @@ float32 (H, W, 3) in 0..1 camera units (see :mod:`viewcomp.calib.world.response`
 from __future__ import annotations
 
 import functools
+import io
+import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.io import npy
 from viewcomp.calib.io.atomic import atomic_open
+from viewcomp.calib.io.paths import check_input_file
 from viewcomp.calib.world.response import Response, parse_response
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
+# The largest image read, checked in the file's header before decoding: 16384 pixels a
+# side (the largest GL texture on common drivers) and 64 megapixels (8K video is 33).
+MAX_IMAGE_SIDE = 16384
+MAX_IMAGE_PIXELS = 64_000_000
 
 
-class CaptureError(ValueError):
+class CaptureError(ViewcompError, ValueError):
     """An image or capture set that cannot be used; the message names the file and the fix."""
 
 
@@ -36,17 +45,7 @@ def read_image(path: str | Path) -> np.ndarray:
     p = Path(path)
     _check_file(p)
     if p.suffix.lower() == ".npy":
-        try:
-            arr = np.load(p, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise CaptureError(f"cannot decode {p} as a .npy array: {exc}") from None
-        if not isinstance(arr, np.ndarray) or arr.dtype.kind != "f":
-            raise CaptureError(
-                f"cannot use {p}: a .npy capture must hold float linear values, "
-                f"got dtype {getattr(arr, 'dtype', type(arr).__name__)}"
-            )
-        arr = arr.astype(np.float32, copy=False)
-        return _to_rgb(arr, p, bgr=False)
+        return _to_rgb(_read_npy(p), p, bgr=False)
     img = _decode(p, cv2.IMREAD_UNCHANGED, "a PNG or TIFF image")
     if img.dtype not in (np.uint8, np.uint16):
         raise CaptureError(
@@ -70,14 +69,67 @@ def read_rgb8(path: str | Path) -> np.ndarray:
 
 
 def _check_file(p: Path) -> None:
-    if not p.exists():
-        raise CaptureError(f"cannot read image {p}: not found; fix: check the path")
-    if not p.is_file():
-        raise CaptureError(f"cannot read image {p}: not a file; fix: give an image file")
+    check_input_file(p, "image", "an image file (saved or captured again if damaged)", CaptureError)
+
+
+def _read_npy(p: Path) -> np.ndarray:
+    """A ``.npy`` capture as float32, its header (dtype, size) checked before the data is
+    read and its values checked after (finite)."""
+    try:
+        with p.open("rb") as f:
+            shape, dtype = npy.read_header(f)
+            if dtype.kind != "f":
+                raise CaptureError(
+                    f"cannot use {p}: a .npy capture must hold float linear values, got "
+                    f"dtype {dtype} - save float32 linear light, or the capture as PNG"
+                )
+            _check_dimensions(p, shape[1] if len(shape) > 1 else 1, shape[0] if shape else 0)
+            arr = npy.read_data(f, shape, dtype)
+    except ValueError as exc:
+        if isinstance(exc, CaptureError):
+            raise
+        raise CaptureError(f"cannot decode {p} as a .npy array: {exc} - save it again") from None
+    arr = arr.astype(np.float32, copy=False)
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.count_nonzero(~np.isfinite(arr)))
+        raise CaptureError(
+            f"cannot use {p}: {bad} value(s) are NaN or infinite - a .npy capture holds finite "
+            "linear light; capture or save it again"
+        )
+    return arr
+
+
+def _check_dimensions(p: Path, w: int, h: int) -> None:
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE or w * h > MAX_IMAGE_PIXELS:
+        raise CaptureError(
+            f"cannot use {p}: its header says {w}x{h} pixels, over the limit of "
+            f"{MAX_IMAGE_SIDE} pixels a side and {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels - "
+            "scale it down (or the file is damaged)"
+        )
+
+
+def _header_size(p: Path, data: np.ndarray) -> tuple[int, int] | None:
+    """(width, height) from the image's header, read without decoding the pixels; None when
+    the format's header is not understood (OpenCV's decoder then has the last word)."""
+    head = data[:24].tobytes()
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR":  # width, height at 16
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # e.g. Pillow's own size warning
+            with Image.open(io.BytesIO(data.tobytes())) as im:
+                return im.size
+    except Image.DecompressionBombError:
+        return (MAX_IMAGE_SIDE + 1, MAX_IMAGE_SIDE + 1)
+    except Exception:  # any header Pillow cannot read is left to OpenCV
+        return None
 
 
 def _decode(p: Path, flags: int, kind: str) -> np.ndarray:
-    """The pixels of an image file as OpenCV decodes them with ``flags`` (BGR order)."""
+    """The pixels of an image file as OpenCV decodes them with ``flags`` (BGR order), after
+    the header's dimensions are checked against the limits."""
     try:
         data = np.fromfile(p, dtype=np.uint8)
     except OSError as exc:
@@ -87,6 +139,9 @@ def _decode(p: Path, flags: int, kind: str) -> np.ndarray:
             f"cannot read image {p}: cannot decode an empty (0-byte) file; fix: save or "
             "capture it again"
         )
+    size = _header_size(p, data)
+    if size is not None:
+        _check_dimensions(p, *size)
     img = cv2.imdecode(data, flags)
     if img is None:
         raise CaptureError(

@@ -12,6 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from viewcomp.calib.io.atomic import atomic_dir
 from viewcomp.calib.io.imageio import write_png
 
 # The gray pattern U's level in every channel (Table 1); Eq. 25's feedback divides by it.
@@ -115,15 +116,15 @@ def graycode_patterns(w: int, h: int) -> tuple[list[np.ndarray], np.ndarray, np.
 
 
 def write_patterns(out_dir: str | Path, w: int, h: int) -> list[Path]:
-    """Write every pattern to project as 8-bit RGB PNGs in ``out_dir`` (created if needed).
+    """Write every pattern to project as 8-bit RGB PNGs: the folder ``out_dir`` is written
+    whole and replaces any old one (:func:`~viewcomp.calib.io.atomic.atomic_dir`).
 
     Files: red.png green.png blue.png gray.png ramp.png black.png (Table 1), chessboard.png
     (:func:`chessboard` with the default squares), graycode_00.png ... (:func:`graycode_patterns`,
-    two digits or more) and graycode_white.png graycode_black.png. Each is written atomically.
+    two digits or more) and graycode_white.png graycode_black.png.
     Returns the paths in that order.
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     images: dict[str, np.ndarray] = dict(table1_patterns(w, h))
     images["chessboard"] = chessboard(w, h)[0]
     planes, white, black = graycode_patterns(w, h)
@@ -132,9 +133,7 @@ def write_patterns(out_dir: str | Path, w: int, h: int) -> list[Path]:
         images[f"graycode_{k:0{digits}d}"] = p
     images["graycode_white"] = white
     images["graycode_black"] = black
-    paths = []
-    for name, img in images.items():
-        path = out / f"{name}.png"
-        write_png(path, img)
-        paths.append(path)
-    return paths
+    with atomic_dir(out) as staging:
+        for name, img in images.items():
+            write_png(staging / f"{name}.png", img)
+    return [out / f"{name}.png" for name in images]

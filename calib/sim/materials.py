@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viewcomp.calib.errors import ViewcompError
+
 #: The arrays of one material and the shape each must have.
 MATERIAL_SHAPES: dict[str, tuple[int, ...]] = {
     "W1": (6, 21),
@@ -57,7 +59,7 @@ _FIX = (
 )
 
 
-class MaterialError(ValueError):
+class MaterialError(ViewcompError, ValueError):
     """A material file (or array set) that cannot be used: the message names the file, what is
     wrong and what to do."""
 

@@ -11,12 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
 from viewcomp.calib.world.rig import Device, Rig
 
 NORMAL = np.array([0.0, 0.0, 1.0])
 
 
-class GeometryError(ValueError):
+class GeometryError(ViewcompError, ValueError):
     """The rig's geometry cannot be used (a pixel misses the screen, a device behind it)."""
 
 

@@ -50,6 +50,7 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+from viewcomp.calib.errors import ViewcompError
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.rt.gl.compensator import (
     MAP_TEXELS,
@@ -66,7 +67,7 @@ TONE_TABLE_STEP = 5.0  # degrees between the baked tone maps of the PARAM varian
 TONE_TABLE = np.arange(5.0, 175.0 + 1e-9, TONE_TABLE_STEP)
 
 
-class ExportError(ValueError):
+class ExportError(ViewcompError, ValueError):
     """An mpv shader cannot be made with these settings; the message says why and the fix."""
 
 

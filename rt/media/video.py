@@ -43,6 +43,7 @@ from typing import Any, Literal
 import av
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError, describe_os_error
 from viewcomp.calib.io.atomic import AtomicFile
 from viewcomp.rt.media.frames import ColorRange, Colorspace, Planes, fit_rect, pad_planes
 
@@ -66,7 +67,7 @@ _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1",
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
 
 
-class VideoError(RuntimeError):
+class VideoError(ViewcompError, RuntimeError):
     """A video cannot be read or written; the message names the file and the fix."""
 
 
@@ -354,10 +355,7 @@ class VideoWriter:
         try:
             self._target = AtomicFile(self.path)
         except OSError as exc:
-            raise VideoError(
-                f"cannot write video {self.path}: {exc}; fix: write into an existing, writable "
-                "folder"
-            ) from exc
+            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
         self.tmp = self._target.tmp
         try:
             self.container = av.open(str(self.tmp), "w")
@@ -427,6 +425,12 @@ class VideoWriter:
 
     def write(self, rgb: np.ndarray) -> None:
         """Encode one RGB frame (H, W, 3) uint8 at timestamp index / rate."""
+        try:
+            self._write(rgb)
+        except OSError as exc:  # a full disk, a vanished folder: named by the output's path
+            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
+
+    def _write(self, rgb: np.ndarray) -> None:
         frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
         cs = av.video.reformatter.Colorspace
         frame = frame.reformat(
@@ -476,6 +480,9 @@ class VideoWriter:
                 for packet in self.audio_out.encode(None):
                     self.container.mux(packet)
             self.container.close()
+        except OSError as exc:  # undo, then name the output (not the temporary file)
+            self._abort(exc)
+            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
         except BaseException as exc:  # undo on any failure, Ctrl-C included; then re-raise
             self._abort(exc)
             raise
@@ -492,8 +499,9 @@ class VideoWriter:
         self._closed = True
         try:
             self.container.close()
-        except av.FFmpegError as exc:  # the file is deleted next; its state does not matter
-            log.warning("closing the partial video %s failed: %s", self.tmp, exc)
+        except av.FFmpegError as exc:  # the file is deleted next; its state does not matter,
+            # and the error that made us abort is the one to report
+            log.debug("closing the partial video %s failed: %s", self.tmp, exc)
         finally:
             self._target.discard(cause)
 

@@ -460,11 +460,11 @@ class LiveRenderer:
 
     # ------------------------------------------------------------------ the eye
     def set_angle(self, degrees: float, smooth: bool = True) -> None:
-        """Move to a viewing angle (degrees, (0, 180)) at the rig's viewer distance/height."""
+        """Move to a viewing angle (degrees, [1, 179]) at the rig's viewer distance/height."""
         self.apply(SetAngle(check_angle(degrees)), smooth)
 
     def set_eye(self, x: float, y: float, z: float, smooth: bool = True) -> None:
-        """Move to an eye position (metres; z > 0)."""
+        """Move to an eye position (metres; z >= 0.05, each within 50 m)."""
         self.apply(SetEye(check_eye((x, y, z))), smooth)
 
     def apply(self, command: EyeCommand, smooth: bool = True) -> None:

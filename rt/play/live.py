@@ -43,6 +43,9 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.world import eye as eye_limits
+
 log = logging.getLogger(__name__)
 
 ANGLE_ADDRESS = "/viewcomp/angle"
@@ -50,15 +53,16 @@ NORM_ADDRESS = "/viewcomp/angle/norm"
 EYE_ADDRESS = "/viewcomp/eye"
 STATUS_ADDRESS = "/viewcomp/status"
 NORM_RANGE = (30.0, 150.0)  # degrees that /viewcomp/angle/norm 0 and 1 map to by default
-ANGLE_MIN, ANGLE_MAX = 1.0, 179.0  # degrees: an angle outside (0, 180) is rejected,
-# and relative moves (keys, mouse) stop at these limits
-EYE_LIMIT = 50.0  # metres: |x|, |y|, |z| of an eye position
+# The limits of an angle and an eye position are viewcomp.calib.world.eye's; relative moves
+# (keys, mouse) stop at the angle's.
+ANGLE_MIN, ANGLE_MAX = eye_limits.ANGLE_MIN, eye_limits.ANGLE_MAX
+EYE_LIMIT = eye_limits.EYE_LIMIT
 MAX_LINE = 256  # characters of one stdin line (longer: rejected)
 MAX_MESSAGES_PER_PACKET = 64  # messages taken from one OSC bundle; the rest are rejected
 SNAP = 1e-6  # metres: the smoothed eye snaps to the target when this close
 
 
-class InputError(ValueError):
+class InputError(ViewcompError, ValueError):
     """A malformed or out-of-range eye command; the message says what and what is expected."""
 
 
@@ -163,24 +167,26 @@ def _number(value: Any, what: str) -> float:
 
 
 def check_angle(value: Any) -> float:
-    """A viewing angle in degrees, strictly inside (0, 180); else InputError."""
+    """A viewing angle in degrees within the limits of :func:`viewcomp.calib.world.eye.check_angle`;
+    else InputError."""
     v = _number(value, "an angle")
-    if not 0.0 < v < 180.0:
-        raise InputError(f"an angle is in (0, 180) degrees (90 = in front), got {v:g}")
-    return v
+    try:
+        return eye_limits.check_angle(v, "an angle")
+    except eye_limits.EyeError as exc:
+        raise InputError(str(exc)) from None
 
 
 def check_eye(values: Sequence[Any]) -> tuple[float, float, float]:
-    """An eye position (x, y, z) metres: finite, z > 0, each |coordinate| <= EYE_LIMIT."""
+    """An eye position (x, y, z) metres within the limits of
+    :func:`viewcomp.calib.world.eye.check_eye`; else InputError."""
     if len(values) != 3:
         raise InputError(f"an eye position is three numbers x y z (metres), got {len(values)}")
-    x, y, z = (_number(v, "an eye coordinate") for v in values)
-    if max(abs(x), abs(y), abs(z)) > EYE_LIMIT:
-        raise InputError(f"an eye position is within {EYE_LIMIT:g} m of the screen, got "
-                         f"({x:g}, {y:g}, {z:g})")  # fmt: skip
-    if z <= 0.0:
-        raise InputError(f"the eye must be in front of the screen (z > 0), got z = {z:g}")
-    return x, y, z
+    nums = [_number(v, "an eye coordinate") for v in values]
+    try:
+        x, y, z = eye_limits.check_eye(nums)
+    except eye_limits.EyeError as exc:
+        raise InputError(str(exc)) from None
+    return float(x), float(y), float(z)
 
 
 def check_norm(value: Any) -> float:

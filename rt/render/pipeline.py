@@ -43,6 +43,7 @@ import numpy as np
 from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
+from viewcomp.calib.errors import ViewcompError, describe_os_error
 from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
 from viewcomp.calib.model.reference import compensate
 from viewcomp.calib.model.runtime import RuntimeModel
@@ -82,7 +83,7 @@ class CompensationLike(Protocol):
     def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> Any: ...
 
 
-class ImageError(RuntimeError):
+class ImageError(ViewcompError, RuntimeError):
     """An input image cannot be read or the output image cannot be written."""
 
 
@@ -401,4 +402,4 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     try:
         write_png(path, rgb)
     except OSError as exc:
-        raise ImageError(f"cannot write image {path}: {exc}") from exc
+        raise ImageError(f"cannot write image {describe_os_error(exc, path)}") from exc

@@ -13,12 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.io.paths import check_input_file
+from viewcomp.calib.world.eye import EyeError, check_angle, check_track, eye_from_angle
 
 EyeTrack = Callable[[float], np.ndarray]
 
 
-class TrackError(ValueError):
+class TrackError(ViewcompError, ValueError):
     """An angle track (CSV) is malformed; the message names the file, the line and the fix."""
 
 
@@ -41,12 +43,10 @@ class AngleTrack:
     """
 
     def __init__(self, times: np.ndarray, degrees: np.ndarray, distance: float, height: float):
-        self.times = np.asarray(times, np.float64)
-        self.degrees = np.asarray(degrees, np.float64)
-        if self.times.ndim != 1 or self.times.shape != self.degrees.shape or not len(self.times):
-            raise TrackError(f"times and degrees must be equal-length 1-D, got {self.times.shape}")
-        if np.any(np.diff(self.times) <= 0):
-            raise TrackError("track times must be strictly increasing")
+        try:
+            self.times, self.degrees = check_track(times, degrees)
+        except EyeError as exc:
+            raise TrackError(str(exc)) from None
         self.distance, self.height = float(distance), float(height)
 
     def angle(self, t: float) -> float:
@@ -67,6 +67,7 @@ def load_angle_track(path: str | os.PathLike[str], distance: float, height: floa
         TrackError: unreadable file, wrong column count, non-numbers, non-increasing times.
     """
     path = Path(path)
+    check_input_file(path, "angle track", "a CSV of `seconds,degrees` rows", TrackError)
     fix = "fix: write one `seconds,degrees` pair per line, times increasing, e.g. `0,90`"
     try:
         text = path.read_text(encoding="utf-8")
@@ -87,6 +88,10 @@ def load_angle_track(path: str | os.PathLike[str], distance: float, height: floa
             raise TrackError(f"{path}:{lineno}: not a number ({row}); {fix}") from exc
         if not (np.isfinite(t) and np.isfinite(d)):
             raise TrackError(f"{path}:{lineno}: not a finite number ({row}); {fix}")
+        try:
+            check_angle(d, f"{path}:{lineno}: the angle")
+        except EyeError as exc:
+            raise TrackError(str(exc)) from None
         if times and t <= times[-1]:
             raise TrackError(f"{path}:{lineno}: time {t} is not after {times[-1]}; {fix}")
         times.append(t)

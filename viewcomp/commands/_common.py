@@ -34,6 +34,86 @@ def nonnegative(text: str) -> float:
     return v
 
 
+def finite(text: str) -> float:
+    """An argparse type: a finite number."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return v
+
+
+def seed(text: str) -> int:
+    """An argparse type: an integer >= 0 (a random seed)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return v
+
+
+def positive(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    v = finite(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return v
+
+
+def add_force_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--force``: replace an existing ``what`` folder whole instead of refusing."""
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"replace an existing {what} in OUT_DIR whole (without it a non-empty OUT_DIR "
+        "is refused)",
+    )
+
+
+def check_output_file(output: str, *inputs: str | None, make_parents: bool = False) -> None:
+    """Refuse an output file that is, or resolves to, an input or lies in an input folder;
+    a folder; or one whose folder is missing (unless ``make_parents``). OutputError."""
+    from viewcomp.calib.io.paths import check_output
+
+    check_output(output, [i for i in inputs if i], make_parents=make_parents)
+
+
+def check_output_folder(
+    out_dir: str, *inputs: str | None, force: bool | None = None, what: str = "folder"
+) -> None:
+    """Refuse an output folder that is a file, an input or inside one; with ``force`` given
+    (commands that replace their folder whole), a non-empty folder unless ``force``, and a
+    folder inside a capture set (or, unless ``what`` is one, a capture set) always.
+    OutputError."""
+    from viewcomp.calib.errors import OutputError
+    from viewcomp.calib.io.captureset import RIG_FILE
+    from viewcomp.calib.io.paths import check_output
+
+    out = check_output(out_dir, [i for i in inputs if i], folder=True)
+    if force is None:
+        return
+    parent = out.resolve().parent
+    if (parent / RIG_FILE).is_file():
+        raise OutputError(
+            f"output folder {out} is inside the capture set {parent} (it has {RIG_FILE}): "
+            "writing there would replace its captures - choose a folder outside it"
+        )
+    if what != "capture set" and (out / RIG_FILE).is_file():
+        raise OutputError(
+            f"output folder {out} is a capture set (it has {RIG_FILE}): writing the {what} "
+            "there would replace its captures - choose another folder"
+        )
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise OutputError(
+            f"output folder {out} already holds files: refusing to write into it - choose a "
+            f"new or empty folder, or give --force to replace the {what} there whole"
+        )
+
+
 def add_eye_arguments(
     p: argparse.ArgumentParser,
     *,
@@ -145,7 +225,7 @@ def add_simulator_arguments(
             "frames, rectified by calibrate (lens, chessboard, Gray code; slower) "
             "(default: projector)",
         )
-    p.add_argument("--seed", type=int, default=0, help="simulator noise seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="simulator noise seed (default 0)")
     if size is not None:
         p.add_argument(
             size,
@@ -198,6 +278,13 @@ def parse_size(text: str) -> tuple[int, int]:
         raise UsageError(f"a size is WIDTHxHEIGHT in pixels, e.g. 1280x720; got {text!r}") from None
     if w < 2 or h < 2:
         raise UsageError(f"a size needs at least 2x2 pixels, got {text!r}")
+    from viewcomp.calib.io.imageio import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
+
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE or w * h > MAX_IMAGE_PIXELS:
+        raise UsageError(
+            f"a size is at most {MAX_IMAGE_SIDE} pixels a side and "
+            f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels, got {text!r}"
+        )
     return w, h
 
 
@@ -218,7 +305,7 @@ def parse_rgb(text: str) -> tuple[float, float, float]:
         v = tuple(float(x) for x in text.split(","))
     except ValueError:
         raise UsageError(f"a screen colour is a name or R,G,B in 0..1; got {text!r}") from None
-    if len(v) != 3:
+    if len(v) != 3 or not all(math.isfinite(x) and 0.0 <= x <= 1.0 for x in v):
         raise UsageError(f"a screen colour is a name or R,G,B in 0..1; got {text!r}")
     return v  # type: ignore[return-value]
 

@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.captureset import read_capture_set
     from viewcomp.commands._common import Log
 
+    _check_paths(args)
     log = Log()
     log(f"reading {args.capture_dir}")
     cs = read_capture_set(args.capture_dir)
@@ -97,3 +98,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _v(a) -> str:
     return "(" + ", ".join("-" if x is None else f"{x:.3g}" for x in a) + ")"
+
+
+def _check_paths(args: argparse.Namespace) -> None:
+    """The bundle is never the capture set, a file in it or its folder (before any work)."""
+    from viewcomp.commands._common import check_output_file
+
+    check_output_file(args.output, args.capture_dir, make_parents=True)

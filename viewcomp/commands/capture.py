@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from viewcomp.commands._common import add_simulator_arguments
+    from viewcomp.commands._common import add_force_argument, add_simulator_arguments
 
     p = sub.add_parser(
         "capture",
@@ -80,6 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
     add_simulator_arguments(sim, size="--sim-size", material=True)
+    add_force_argument(p, "capture set")
     p.set_defaults(run=run)
 
 
@@ -90,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         return _list_monitors()
     if args.out_dir is None:
         raise UsageError("give the capture-set folder OUT_DIR")
+    _check_out_dir(args)
     if args.frames < 1:
         raise UsageError(f"--frames must be at least 1, got {args.frames}")
     if args.settle is not None and args.settle < 0:
@@ -232,3 +234,10 @@ def _list_monitors() -> int:
     for m in mons:
         print(m)
     return 0
+
+
+def _check_out_dir(args: argparse.Namespace) -> None:
+    """OUT_DIR new or empty (an old capture set only with --force), never an input."""
+    from viewcomp.commands._common import check_output_folder
+
+    check_output_folder(args.out_dir, args.rig, force=args.force, what="capture set")

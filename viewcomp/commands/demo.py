@@ -41,8 +41,9 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.imageio import write_png
     from viewcomp.calib.sim.simulate import simulate_capture_set
     from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
-    from viewcomp.commands._common import Log, simulated_screen
+    from viewcomp.commands._common import Log, check_output_folder, simulated_screen
 
+    check_output_folder(args.out)
     log = Log()
     out = Path(args.out)
     caps = out / "captures"

@@ -61,8 +61,9 @@ def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.eval.run import run as run_eval
     from viewcomp.cli import UsageError
-    from viewcomp.commands._common import Log, parse_size
+    from viewcomp.commands._common import Log, check_output_folder, parse_size
 
+    check_output_folder(args.output)
     log = Log(args.quiet)
     size = parse_size(args.size) if args.size else None
     if args.protocol == "materials" and not args.materials:

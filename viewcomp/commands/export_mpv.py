@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
+from viewcomp.commands._common import (
+    add_eye_arguments,
+    add_tone_arguments,
+    finite,
+    parse_vec3,
+    positive,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,8 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_tone_arguments(p, smooth=False)
     p.add_argument("--tone-from", metavar="IMAGE",
                    help="choose the tone map for this image (a typical frame)")  # fmt: skip
-    p.add_argument("--alpha", type=float, default=None, help="bake this tone-map alpha")
-    p.add_argument("--beta", type=float, default=None, help="bake this tone-map beta")
+    p.add_argument("--alpha", type=positive, default=None, help="bake this tone-map alpha (> 0)")
+    p.add_argument("--beta", type=finite, default=None, help="bake this tone-map beta")
     p.add_argument("--precision", type=int, choices=[16, 32], default=16,
                    help="bits per embedded map value (16: rgba16, half the size; 32: "
                    "rgba32f, exact)")  # fmt: skip
@@ -38,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.errors import OutputError, describe_os_error
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.io.imageio import read_rgb8
@@ -49,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("give both --alpha and --beta, or neither")
     if args.tone_from and args.alpha is not None:
         raise UsageError("--tone-from and --alpha/--beta both set the tone map; give one")
+    _check_args(args)
     cal = Calibration.load(args.calib)
     try:
         sample = None
@@ -72,10 +80,23 @@ def run(args: argparse.Namespace) -> int:
     try:
         write_text_atomic(args.output, text, encoding="ascii")
     except OSError as exc:
-        raise UsageError(f"cannot write {args.output}: {exc}") from None
+        raise OutputError(f"cannot write {describe_os_error(exc, args.output)}") from None
     w, h = info.grid
     where = "angle as //!PARAM" if info.param else (
         f"angle {info.angle:g} deg" if info.angle is not None else "fixed eye")  # fmt: skip
     print(f"wrote {args.output}: {info.bytes / 1e6:.1f} MB, {info.method} method, {where}, "
           f"grid {w}x{h}, alpha {info.alpha:.3f} beta {info.beta:.4f}")  # fmt: skip
     return 0
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    """Before any work: the eye within the limits, the shader file never the bundle or the
+    tone image."""
+    from viewcomp.calib.world.eye import check_angle, check_eye
+    from viewcomp.commands._common import check_output_file
+
+    if args.angle is not None:
+        check_angle(args.angle, "--angle")
+    if args.eye:
+        check_eye(parse_vec3(args.eye), f"--eye {args.eye}")
+    check_output_file(args.output, args.calib, args.tone_from)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
+from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, finite, parse_vec3
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="gl: the GLSL shader (default); cpu: the numpy reference")  # fmt: skip
     p.add_argument("--identity", action="store_true",
                    help="run the same pipeline with compensation off (A/B, timing)")  # fmt: skip
-    p.add_argument("--crf", type=float, default=18, help="video quality (x264 CRF, default 18)")
+    p.add_argument("--crf", type=finite, default=18, help="video quality (x264 CRF, default 18)")
     p.add_argument("--codec", default="libx264", help="video codec (default libx264)")
     p.add_argument("--preset", default=None, help="encoder preset, e.g. veryfast (x264)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -45,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.rt.render.pipeline import is_image, render_file
     from viewcomp.rt.render.tracks import constant_eye, load_angle_track
 
+    _check_args(args)
     cal = Calibration.load(args.calib)
     v = cal.rig.viewer
     if args.track is not None:
@@ -54,6 +55,11 @@ def run(args: argparse.Namespace) -> int:
         track = constant_eye(*eye)
     if is_image(Path(args.input)) and Path(args.output).suffix.lower() != ".png":
         raise UsageError(f"an image renders to a .png file, got {args.output}")
+    if not is_image(Path(args.input)) and is_image(Path(args.output)):
+        raise UsageError(
+            f"a video renders to a video file, got {args.output} (an image file name): "
+            "give an output such as out.mp4, .mkv or .mov"
+        )
     lam = DEFAULT_LAMBDA if args.lam is None else args.lam
     tau = None if is_image(Path(args.input)) else args.smooth
     comp = Compensation(cal, args.method, lam, tau=tau)
@@ -77,3 +83,18 @@ def run(args: argparse.Namespace) -> int:
         done = f"{stats.frames} frames, {what}, {args.backend} backend, {stats.fps:.1f} frames/s"
     print(f"wrote {args.output}: {done}")
     return 0
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    """Before any work: the input usable, the eye within the limits, the output never an
+    input."""
+    from viewcomp.calib.io.paths import check_input_file
+    from viewcomp.calib.world.eye import check_angle, check_eye
+    from viewcomp.commands._common import check_output_file
+
+    check_input_file(args.input, "input", "an image or a video file")
+    if args.angle is not None:
+        check_angle(args.angle, "--angle")
+    if args.eye:
+        check_eye(parse_vec3(args.eye), f"--eye {args.eye}")
+    check_output_file(args.output, args.calib, args.input, args.track)

@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 
 from viewcomp.cli import UsageError
-from viewcomp.commands._common import add_simulator_arguments, parse_size, simulated_screen
+from viewcomp.commands._common import (
+    add_force_argument,
+    add_simulator_arguments,
+    check_output_folder,
+    parse_size,
+    simulated_screen,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -17,7 +23,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "matte white screen) and screen/ (the real one: an analytic screen, or a measured "
         "material with --material). Seeded and reproducible.",
     )
-    p.add_argument("out_dir", help="capture-set folder to write (new, or an old capture set)")
+    p.add_argument(
+        "out_dir",
+        help="capture-set folder to write (new or empty; an old capture set with --force)",
+    )
     add_simulator_arguments(p, space=True, material=True)
     p.add_argument("--no-black", action="store_true", help="leave out the optional black captures")
     p.add_argument(
@@ -35,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "that puts the white screen's gray at 0.5 of full scale (default: auto with --hdr, "
         "0.8 otherwise)",
     )
+    add_force_argument(p, "capture set")
     p.set_defaults(run=run)
 
 
@@ -55,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
             exposure = math.nan
         if not (math.isfinite(exposure) and exposure > 0):
             raise UsageError(f"--exposure is auto or a number > 0, got {args.exposure!r}")
+    check_output_folder(args.out_dir, force=args.force, what="capture set")
     rig = simulation_rig()
     if args.size:
         w, h = parse_size(args.size)
