@@ -2,7 +2,8 @@
 // viewcomp.rt.gl.compensator.pixel_texels in VC_MAPk) sampled at the output pixel, solved
 // for the eye as the GL compensator's compensate.frag.glsl does.
 //
-// Defines (literals, besides those of mpv_lut.glsl): VC_S_INIT, VC_O_INIT (vec4[8]: texel k
+// Defines (literals, besides those of mpv_lut.glsl): VC_GRID (vec2: the calibration grid's
+// width and height in pixels), VC_S_INIT, VC_O_INIT (vec4[8]: texel k
 // of the maps = VC_S[k] t + VC_O[k] for the texture's value t), VC_LOBE_HALF (true: the
 // half-vector angle), VC_LOBE_N (the lobe table's entries, row 2 of VC_LUT), VC_LOBE_BLACK
 // (the projector leak's share of the black level), VC_SQ_SCALE,
@@ -43,9 +44,24 @@ vec2 vc_tone() {
 }
 #endif
 
+// The maps' texture coordinate of this output pixel. mpv's OUTPUT image is its video
+// rectangle (HOOKED_size), not the window: bars outside it never reach the hook. With the
+// filter that export-mpv prints (content scaled and padded to the grid in mpv, as
+// viewcomp.rt.media.frames.fit_rect does) the video has the grid's aspect and this is
+// HOOKED_pos. Without it, and with a window of the grid's aspect, the rectangle is where
+// fit_rect places content of that aspect in the grid (centred, aspect kept): the maps are
+// read there, so each pixel still gets its own correction (only the bars stay
+// uncompensated).
+vec2 vc_map_pos() {
+    vec2 s = vec2(min(VC_GRID.x / HOOKED_size.x, VC_GRID.y / HOOKED_size.y));
+    vec2 fit = clamp(floor(HOOKED_size * s + 0.5), vec2(1.0), VC_GRID);
+    vec2 off = floor(0.5 * (VC_GRID - fit));
+    return (off + HOOKED_pos * fit) / VC_GRID;
+}
+
 vec4 hook() {
-    vec2 uv = HOOKED_pos;
-    vec4 src = HOOKED_tex(uv);
+    vec4 src = HOOKED_tex(HOOKED_pos);
+    vec2 uv = vc_map_pos();
     PixelMaps m = pixel_maps(
         texture(VC_MAP0, uv) * VC_S[0] + VC_O[0], texture(VC_MAP1, uv) * VC_S[1] + VC_O[1],
         texture(VC_MAP2, uv) * VC_S[2] + VC_O[2], texture(VC_MAP3, uv) * VC_S[3] + VC_O[3],

@@ -262,13 +262,16 @@ def mpv_display() -> Any:
 
 
 def run_mpv(
-    shader: Path, image: Path, vo: str, tmp: Path, *extra: str
+    shader: Path, image: Path, vo: str, tmp: Path, *extra: str, size: tuple[int, int] | None = None
 ) -> tuple[np.ndarray | None, str]:
-    """mpv shows ``image`` through ``shader`` in a window of the image's size; returns the
-    window's screenshot (None if mpv failed) and mpv's log."""
+    """mpv shows ``image`` (or a video's first frame) through ``shader`` in a window of
+    ``size`` (default: the image's size); returns the window's screenshot (None if mpv
+    failed) and mpv's log."""
     sock = tmp / f"mpv-{vo}.sock"
     shot = tmp / f"shot-{vo}.png"
-    h, w = cv2.imread(str(image)).shape[:2]
+    for old in (sock, shot):  # from an earlier run in the same folder
+        old.unlink(missing_ok=True)
+    w, h = size or cv2.imread(str(image)).shape[1::-1]
     cmd = ["mpv", "--no-config", f"--vo={vo}", "--gpu-context=x11egl", "--gpu-sw",
            f"--glsl-shaders={shader}", "--dither-depth=no", f"--geometry={w}x{h}",
            "--border=no", "--pause", "--keep-open=always", "--osc=no", "--osd-level=0",
@@ -346,3 +349,61 @@ def test_real_mpv_runs_the_param_code_path(
     assert got is not None, log
     want = run_hook(gl_ctx, text, image, 47.5)
     assert_levels_close(got, want, "\nPARAM code path, 47.5 deg, vo=gpu")
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_real_mpv_registers_a_16_9_clip_like_render(
+    mpv_display: str, cal: Any, tmp_path: Path
+) -> None:
+    """A 16:9 clip on the 2:1 grid (pillarboxed): mpv with the documented command line
+    (mpv_args: the shader and the fit filter) shows what `viewcomp render` writes, bars
+    included. Both are compared in render's output format (mpv's window encoded by the same
+    writer, losslessly, and decoded by the same reader), so only the compensation differs."""
+    from fractions import Fraction
+
+    from viewcomp.cli import main
+    from viewcomp.rt.export.mpv import mpv_args
+    from viewcomp.rt.media.frames import Planes, fit_rect, yuv420p_to_rgb
+    from viewcomp.rt.media.video import VideoReader, VideoWriter
+    from viewcomp.rt.testing import write_clip
+
+    def first_frame(path: Path, fit: tuple[int, int] | None = None) -> Planes:
+        with VideoReader(path, fit=fit, audio="none") as reader:
+            return next(p for p in reader if isinstance(p, Planes))
+
+    bundle = tmp_path / "s.vcb"
+    cal.save(bundle)
+    clip = tmp_path / "clip.mp4"
+    write_clip(str(clip), [smooth_frame(256, 144, seed=3)] * 3, 25, tone=False,
+               options={"crf": "0", "preset": "ultrafast"})  # fmt: skip
+    x0, _, fw, _ = fit_rect(256, 144, W, H, even=True)
+    assert (x0, fw) == (4, 56)  # pillarboxed: 4 black columns each side
+    fitted = tmp_path / "fitted.png"  # the frame as render fits it: its tone map
+    cv2.imwrite(str(fitted), yuv420p_to_rgb(first_frame(clip, (W, H)))[..., ::-1])
+    shader = tmp_path / "c.glsl"
+    assert main(["export-mpv", str(bundle), "-o", str(shader), "--angle", "60",
+                 "--tone-from", str(fitted)]) == 0  # fmt: skip
+    rendered = tmp_path / "render.mp4"
+    assert main(["render", str(bundle), str(clip), "-o", str(rendered), "--angle", "60",
+                 "--quiet", "--crf", "0", "--smooth", "0"]) == 0  # fmt: skip
+    out = first_frame(rendered)
+    want = yuv420p_to_rgb(out).astype(int)
+    args = [a for a in mpv_args(str(shader), (W, H)) if not a.startswith("--glsl-shaders=")]
+    results = {}
+    for name, extra in (("documented", args), ("without the filter", ["--dither-depth=no"])):
+        got, log = run_mpv(shader, clip, "gpu", tmp_path, *extra, size=(W, H))
+        assert got is not None, log
+        again = tmp_path / f"mpv-{len(results)}.mp4"
+        with VideoWriter(again, W, H, Fraction(25), crf=0, colorspace=out.colorspace) as wr:
+            wr.write(np.ascontiguousarray(got))
+        diff = np.abs(yuv420p_to_rgb(first_frame(again)).astype(int) - want)
+        results[name] = diff
+        print(
+            f"\nmpv ({name}) vs render, 16:9 on 2:1: mean {diff.mean():.2f} levels, "
+            f"bars {diff[:, :x0].mean():.2f}, picture {diff[:, x0 + 1 : x0 + fw - 1].mean():.2f}"
+        )
+    assert results["documented"].mean() < 1.5
+    # Without the filter the maps are still read where the picture lies (the bars, outside
+    # mpv's video rectangle, are not compensated; one column either side may be rounded).
+    assert results["without the filter"][:, x0 + 1 : x0 + fw - 1].mean() < 1.5

@@ -34,10 +34,19 @@ a sample (``tone_from``, e.g. a typical frame: the same choice ``viewcomp render
 that image), or by default from :func:`full_range_sample`, a conservative map that keeps
 every colour of any content reachable.
 
-Sampling: the maps are read with NEAREST filtering at ``HOOKED_pos``; when mpv's output is
-the grid's size (fullscreen on the projector whose grid was calibrated) every output pixel
-reads exactly its own texel. Input levels are ``255 * HOOKED`` (fractional for video after
-mpv's yuv -> RGB; the forward LUT interpolates linearly, as the reference does).
+Registration: ``viewcomp render`` and ``play`` fit every frame to the grid (scaled, aspect
+kept, centred on black: :func:`viewcomp.rt.media.frames.fit_rect`) and compensate the bars
+too. mpv's OUTPUT hook sees only mpv's video rectangle, so the documented command line
+(:func:`mpv_args`) makes mpv do that same fit itself, before the hook:
+:func:`fit_filter`, libavfilter's ``scale`` (bilinear, left-sited chroma: the same swscale
+call as :class:`viewcomp.rt.media.video.VideoReader`'s) and ``pad`` to the grid's size.
+The video then has the grid's aspect, the hook covers the whole window (black bars
+included, compensated as ``render`` does) and the maps are read with NEAREST filtering at
+``HOOKED_pos``: at the grid's size each output pixel reads exactly its own texel. Without
+the filter the hook still reads the maps where the picture lies in the grid (``mpv_pixel``'s
+``vc_map_pos``), but mpv's own bars stay uncompensated. Input levels are ``255 * HOOKED``
+(fractional for video after mpv's yuv -> RGB; the forward LUT interpolates linearly, as the
+reference does).
 """
 
 from __future__ import annotations
@@ -83,6 +92,24 @@ class MpvShaderInfo:
     beta: float
     precision: int
     bytes: int
+
+
+def fit_filter(grid: tuple[int, int]) -> str:
+    """mpv's ``--vf`` value that fits any video to a (W, H) grid exactly as ``viewcomp
+    render``/``play`` do: scaled with aspect kept to even sizes (bilinear, chroma sited left
+    as MPEG-2/H.264 put it, which is what PyAV's reformat assumes), centred on black, square
+    pixels. The same libswscale call as :class:`viewcomp.rt.media.video.VideoReader`, so the
+    planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/test_mpv.py)."""
+    w, h = grid
+    return (f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"
+            ":flags=bilinear:in_h_chr_pos=0:out_h_chr_pos=0"
+            f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]")  # fmt: skip
+
+
+def mpv_args(shader: str, grid: tuple[int, int]) -> list[str]:
+    """mpv's options for an exported shader (besides the screen and the files): the shader,
+    no dithering (the shader outputs exact levels) and :func:`fit_filter`."""
+    return [f"--glsl-shaders={shader}", "--dither-depth=no", f"--vf={fit_filter(grid)}"]
 
 
 def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
@@ -219,6 +246,7 @@ def export_mpv_shader(
     n_inv = int(model.inv_lut.shape[0])
     lut = _lut_image(model)
     defines: dict[str, str | int | float] = {
+        "VC_GRID": vec_literal((w, h)),
         "VC_LUT_W": literal(lut.shape[1]),
         "VC_N_INV": n_inv,
     }
@@ -271,8 +299,9 @@ def export_mpv_shader(
         f"// Tone map: alpha {alpha:.4f}, beta {beta:.5f}"
         + (" (per angle from a table)" if param else "")
         + ".",
-        "// Use: mpv --glsl-shaders=THIS_FILE --dither-depth=no --fullscreen VIDEO, on the",
-        f"// projector, ideally at {w}x{h} (the maps are sampled at each output pixel).",
+        f"// Use, fullscreen on the projector (ideally at {w}x{h}):",
+        "//   mpv " + " ".join(mpv_args("THIS_FILE", (w, h))) + " --fullscreen VIDEO",
+        "// (the --vf fits the video to the grid as `viewcomp render` does, bars included).",
     ]
     if param:
         header.append("// Needs vo=gpu-next with a libplacebo that supports PARAM; set the "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 
 from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
@@ -18,7 +19,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "//!PARAM angle set by --glsl-shader-opts=angle=DEG (vo=gpu-next with a libplacebo "
         "that supports it; see docs/PLAYER.md). The tone map is baked too: from "
         "--tone-from (a typical frame), or a conservative one that keeps any content in "
-        "range. Play with: mpv --glsl-shaders=FILE --dither-depth=no --fullscreen VIDEO",
+        "range. It prints the mpv command line to play with (its --vf fits the video to the "
+        "calibration grid as `viewcomp render` does).",
     )
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("-o", "--output", required=True, help="the shader file to write (.glsl)")
@@ -42,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.io.imageio import read_rgb8
     from viewcomp.cli import UsageError
-    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader
+    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, mpv_args
     from viewcomp.rt.media.frames import fit_rgb
 
     if (args.alpha is None) != (args.beta is None):
@@ -78,4 +80,7 @@ def run(args: argparse.Namespace) -> int:
         f"angle {info.angle:g} deg" if info.angle is not None else "fixed eye")  # fmt: skip
     print(f"wrote {args.output}: {info.bytes / 1e6:.1f} MB, {info.method} method, {where}, "
           f"grid {w}x{h}, alpha {info.alpha:.3f} beta {info.beta:.4f}")  # fmt: skip
+    print("play fullscreen on the projector with: mpv "
+          + " ".join(shlex.quote(a) for a in mpv_args(args.output, info.grid))
+          + " --fullscreen VIDEO")  # fmt: skip
     return 0
