@@ -20,6 +20,9 @@ uniform sampler2D VC_MAP4;
 uniform sampler2D VC_MAP5;
 uniform sampler2D VC_MAP6;
 uniform sampler2D VC_MAP7;
+uniform sampler2D VC_ROW0;
+uniform sampler2D VC_ROW1;
+uniform sampler2D VC_ROW2;
 uniform sampler2D VC_LUT;
 uniform float angle;
 

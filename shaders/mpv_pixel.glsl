@@ -1,14 +1,14 @@
-// The pixel method's mpv hook of `viewcomp export-mpv`: the maps VC_MAP0..7 (texel k of
-// viewcomp.rt.gl.compensator.pixel_texels in VC_MAPk) sampled at the output pixel, solved
-// for the eye as the GL compensator's compensate.frag.glsl does.
+// The pixel method's eye-following mpv hook of `viewcomp export-mpv --param`: the maps
+// VC_MAP0..7 (texel k of viewcomp.rt.gl.compensator.pixel_texels in VC_MAPk) sampled at the
+// output pixel, solved for the eye as the GL compensator's compensate.frag.glsl does. (A
+// fixed eye: mpv_held.glsl.)
 //
-// Defines (literals, besides those of mpv_lut.glsl): VC_GRID (vec2: the calibration grid's
-// width and height in pixels), VC_S_INIT, VC_O_INIT (vec4[8]: texel k
+// Defines (literals, besides those of mpv_lut.glsl): VC_S_INIT, VC_O_INIT (vec4[8]: texel k
 // of the maps = VC_S[k] t + VC_O[k] for the texture's value t), VC_LOBE_HALF (true: the
 // half-vector angle), VC_LOBE_N (the lobe table's entries, row 2 of VC_LUT), VC_LOBE_BLACK
 // (the projector leak's share of the black level), VC_SQ_SCALE,
-// VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI (pixel_t2); VC_PARAM 0: the eye VC_EYE and the tone map VC_ALPHA, VC_BETA are fixed;
-// VC_PARAM 1: both follow the parameter angle (degrees; mpv's PARAM), the eye at
+// VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI (pixel_t2). The eye and the tone map follow the parameter
+// angle (degrees; mpv's PARAM), the eye at
 // (VC_DIST cos, VC_HEIGHT, VC_DIST sin) and the tone map interpolated in a table of
 // VC_TONE_N entries from VC_TONE_FIRST degrees every VC_TONE_STEP (VC_TONE_ALPHA_INIT,
 // VC_TONE_BETA_INIT).
@@ -18,7 +18,6 @@
 const vec4 VC_S[8] = VC_S_INIT;
 const vec4 VC_O[8] = VC_O_INIT;
 
-#if VC_PARAM == 1
 const float VC_TONE_ALPHA[VC_TONE_N] = VC_TONE_ALPHA_INIT;
 const float VC_TONE_BETA[VC_TONE_N] = VC_TONE_BETA_INIT;
 
@@ -33,30 +32,6 @@ vec2 vc_tone() {
     float f = x - float(i);
     return vec2(mix(VC_TONE_ALPHA[i], VC_TONE_ALPHA[i + 1], f),
                 mix(VC_TONE_BETA[i], VC_TONE_BETA[i + 1], f));
-}
-#else
-vec3 vc_eye() {
-    return VC_EYE;
-}
-
-vec2 vc_tone() {
-    return vec2(VC_ALPHA, VC_BETA);
-}
-#endif
-
-// The maps' texture coordinate of this output pixel. mpv's OUTPUT image is its video
-// rectangle (HOOKED_size), not the window: bars outside it never reach the hook. With the
-// filter that export-mpv prints (content scaled and padded to the grid in mpv, as
-// viewcomp.rt.media.frames.fit_rect does) the video has the grid's aspect and this is
-// HOOKED_pos. Without it, and with a window of the grid's aspect, the rectangle is where
-// fit_rect places content of that aspect in the grid (centred, aspect kept): the maps are
-// read there, so each pixel still gets its own correction (only the bars stay
-// uncompensated).
-vec2 vc_map_pos() {
-    vec2 s = vec2(min(VC_GRID.x / HOOKED_size.x, VC_GRID.y / HOOKED_size.y));
-    vec2 fit = clamp(floor(HOOKED_size * s + 0.5), vec2(1.0), VC_GRID);
-    vec2 off = floor(0.5 * (VC_GRID - fit));
-    return (off + HOOKED_pos * fit) / VC_GRID;
 }
 
 vec4 hook() {

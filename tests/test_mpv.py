@@ -154,12 +154,12 @@ def test_structure_of_a_fixed_angle_export(cal: Any, image: np.ndarray) -> None:
     blocks = sections(text)
     hook = blocks[0][0]
     assert hook["HOOK"] == ["OUTPUT"]
-    assert hook["BIND"] == ["HOOKED", *(f"VC_MAP{k}" for k in range(8)), "VC_LUT"]
+    assert hook["BIND"] == ["HOOKED", *(f"VC_ROW{k}" for k in range(3)), "VC_LUT"]
     assert "vec4 hook()" in blocks[0][1]
     names = [h["TEXTURE"][0] for h, _ in blocks[1:]]
-    assert names == [*(f"VC_MAP{k}" for k in range(8)), "VC_LUT"]
+    assert names == [*(f"VC_ROW{k}" for k in range(3)), "VC_LUT"]
     tex = textures(text)
-    assert all(tex[f"VC_MAP{k}"].shape == (H, W, 4) for k in range(8))
+    assert all(tex[f"VC_ROW{k}"].shape == (H, W, 4) for k in range(3))
     assert tex["VC_LUT"].shape == (3, 1024, 4)
     header = text[: text.index("//!")]
     assert "grid 64x32" in header and "angle 60" in header

@@ -5,16 +5,21 @@ final image at the window's size, before mpv's colour management) that evaluates
 formula of docs/RUNTIME.md per output pixel, and ``//!TEXTURE`` sections with everything
 it reads embedded as hexadecimal:
 
-- ``VC_MAP0`` .. ``VC_MAP7`` (pixel method): texel k of every pixel of the GL compensator's
-  maps (:func:`viewcomp.rt.gl.compensator.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
-  refl | the camera's lobe (R), p.xy | the camera's lobe (G, B)), ``rgba16`` (16-bit
-  unsigned normalised: value = offset + t (max - min) per texel channel over the grid) or,
-  with ``precision=32``, ``rgba32f`` (exact, twice the size);
+- ``VC_ROW0`` .. ``VC_ROW2`` (pixel method, a fixed eye): per pixel the affine map from the
+  frame's forward-LUT value to the inverse LUT's position, the eye and the tone map folded
+  in (:func:`held_rows`: the GL compensator's view cache), 12 numbers per pixel;
+- ``VC_MAP0`` .. ``VC_MAP7`` (pixel method, ``param``: the eye follows the angle): texel k
+  of every pixel of the GL compensator's maps
+  (:func:`viewcomp.rt.gl.compensator.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
+  refl | the camera's lobe (R), p.xy | the camera's lobe (G, B)), 32 numbers per pixel;
+- both ``rgba16`` (16-bit unsigned normalised: value = offset + t (max - min) per texel
+  channel over the grid) or, with ``precision=32``, ``rgba32f`` (exact, twice the size);
 - ``VC_LUT`` (``rgba32f``, 3 rows): row 0 the forward LUT at the 256 levels, row 1 the
   inverse LUT (N entries on [inv_lo, inv_hi]), row 2 the specular lobe's table (pixel
   method; zeros for the paper's).
 
-The hook's GLSL is not written here: it is ``mpv_pixel.glsl`` or ``mpv_paper.glsl`` of
+The hook's GLSL is not written here: it is ``mpv_held.glsl``, ``mpv_pixel.glsl`` (PARAM)
+or ``mpv_paper.glsl`` of
 :mod:`viewcomp.shaders` with the formula of ``compensate_core.glsl`` (the GL compensator's)
 expanded into it, after
 ``#define`` lines with this export's numbers (the same CPU folding as the GL compensator:
@@ -43,7 +48,7 @@ call as :class:`viewcomp.rt.media.video.VideoReader`'s) and ``pad`` to the grid'
 The video then has the grid's aspect, the hook covers the whole window (black bars
 included, compensated as ``render`` does) and the maps are read with NEAREST filtering at
 ``HOOKED_pos``: at the grid's size each output pixel reads exactly its own texel. Without
-the filter the hook still reads the maps where the picture lies in the grid (``mpv_pixel``'s
+the filter the hook still reads the maps where the picture lies in the grid (``mpv_lut.glsl``'s
 ``vc_map_pos``), but mpv's own bars stay uncompensated. Input levels are ``255 * HOOKED``
 (fractional for video after mpv's yuv -> RGB; the forward LUT interpolates linearly, as the
 reference does).
@@ -59,9 +64,9 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+from viewcomp.calib.model.reference import screen_at, tone_terms
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.rt.gl.compensator import (
-    MAP_TEXELS,
     inverse_position,
     paper_rows,
     pixel_texels,
@@ -126,33 +131,29 @@ def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
     return colours[(xx + 3 * yy) % len(colours)]
 
 
-def pack_maps(
-    model: RuntimeModel, precision: int = 16
+def pack_images(
+    texels: np.ndarray, precision: int = 16
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """The pixel method's maps (:func:`~viewcomp.rt.gl.compensator.pixel_texels`) as 8
-    (H, W, 4) images, image k = texel k of every pixel.
+    """Per-pixel texels (H, W, K, 4) as K (H, W, 4) images, image k = texel k of every pixel.
 
     ``precision`` 16: uint16 images and per texel channel (scale, offset), value = offset
     + t scale with t = q / 65535 the normalised texel (scale = max - min over the grid);
-    32: float32 images with scale 1 and offset 0. Returns (images, scale (8, 4), offset
-    (8, 4)).
+    32: float32 images with scale 1 and offset 0. Returns (images, scale (K, 4), offset
+    (K, 4)).
 
     Raises:
-        ExportError: a precision other than 16 or 32, or a model array that is missing, of
-            the wrong shape or not finite.
+        ExportError: a precision other than 16 or 32.
     """
     if precision not in (16, 32):
         raise ExportError(f"precision is 16 or 32 bits, got {precision}")
-    try:
-        texels = pixel_texels(model)
-    except ValueError as exc:
-        raise ExportError(f"the calibration's runtime model: {exc}") from None
-    scale = np.ones((MAP_TEXELS, 4), np.float64)
-    offset = np.zeros((MAP_TEXELS, 4), np.float64)
+    k_n = texels.shape[2]
+    scale = np.ones((k_n, 4), np.float64)
+    offset = np.zeros((k_n, 4), np.float64)
     if precision == 32:
-        return [np.ascontiguousarray(texels[:, :, k]) for k in range(MAP_TEXELS)], scale, offset
+        images = [np.ascontiguousarray(texels[:, :, k], np.float32) for k in range(k_n)]
+        return images, scale, offset
     images = []
-    for k in range(MAP_TEXELS):
+    for k in range(k_n):
         f = texels[:, :, k].astype(np.float64)
         lo, hi = f.min(axis=(0, 1)), f.max(axis=(0, 1))
         span = hi - lo
@@ -160,6 +161,47 @@ def pack_maps(
         q = np.rint((f - lo) / np.where(span > 0, span, 1.0) * 65535.0)
         images.append(np.clip(q, 0, 65535).astype(np.uint16))
     return images, scale, offset
+
+
+def pack_maps(
+    model: RuntimeModel, precision: int = 16
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The pixel method's maps (:func:`~viewcomp.rt.gl.compensator.pixel_texels`) as 8
+    images (:func:`pack_images`): what the eye-following (``//!PARAM``) hook reads.
+
+    Raises:
+        ExportError: a bad precision, or a model array that is missing, of the wrong shape
+            or not finite.
+    """
+    try:
+        texels = pixel_texels(model)
+    except ValueError as exc:
+        raise ExportError(f"the calibration's runtime model: {exc}") from None
+    return pack_images(texels, precision)
+
+
+def held_rows(
+    model: RuntimeModel, eye: np.ndarray, alpha: float, beta: float, sq: dict[str, np.ndarray]
+) -> np.ndarray:
+    """The pixel method for one eye and tone map as one affine map per pixel, (H, W, 3, 4)
+    float64: row i = (G_i | w_i) with t2_i = G_i . pw + w_i the inverse LUT's squared
+    position (``pixel_t2``'s, before its clamp) of the frame's forward-LUT value pw.
+
+    The GL compensator's view cache (docs/RUNTIME.md) with the tone map folded in:
+    y = M^-1 (alpha (Ww pw + Aw) + beta 1 - A) = alpha M^-1 Ww pw + alpha u + beta v + c,
+    M and A from :func:`~viewcomp.calib.model.reference.screen_at`, (u, v, c) from
+    :func:`~viewcomp.calib.model.reference.tone_terms`, solved in float64 on the CPU;
+    then t2 = scale y - off (``sq``: :func:`~viewcomp.rt.gl.compensator.inverse_position`).
+    12 numbers per pixel instead of the 32 of the maps.
+    """
+    m, amb = screen_at(model, np.asarray(eye, np.float32))
+    m_inv = np.linalg.inv(m.astype(np.float64))
+    g = np.einsum("hwij,hwjk->hwik", m_inv, model.Ww.astype(np.float64))
+    u, v, c = tone_terms(m_inv, model.Aw.astype(np.float64), amb.astype(np.float64))
+    rows = np.concatenate([alpha * g, (alpha * u + beta * v + c)[..., None]], axis=-1)
+    rows *= np.asarray(sq["scale"], np.float64)[:, None]
+    rows[..., 3] -= np.asarray(sq["off"], np.float64)
+    return rows
 
 
 def _lut_image(model: RuntimeModel) -> np.ndarray:
@@ -252,21 +294,27 @@ def export_mpv_shader(
     }
     binds = ["HOOKED"]
     textures: list[str] = []
+    fmt = "rgba16" if precision == 16 else "rgba32f"
     if method == "pixel":
-        images, scale, offset = pack_maps(model, precision)
-        fmt = "rgba16" if precision == 16 else "rgba32f"
-        for k, img in enumerate(images):
-            binds.append(f"VC_MAP{k}")
-            textures.append(_texture(f"VC_MAP{k}", img, fmt))
         sq = inverse_position(model.inv_lo, model.inv_hi, n_inv)
+        defines.update({f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()})
+        if param:
+            images, scale, offset = pack_maps(model, precision)
+            name = "VC_MAP"
+        else:
+            try:
+                rows = held_rows(model, e, alpha, beta, sq)
+            except np.linalg.LinAlgError:
+                msg = "the screen's mixing matrix is singular at this eye"
+                raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
+            images, scale, offset = pack_images(rows, precision)
+            name = "VC_ROW"
+        for k, img in enumerate(images):
+            binds.append(f"{name}{k}")
+            textures.append(_texture(f"{name}{k}", img, fmt))
         defines.update({
             "VC_S_INIT": array_literal("vec4", [vec_literal(r) for r in scale]),
             "VC_O_INIT": array_literal("vec4", [vec_literal(r) for r in offset]),
-            "VC_LOBE_HALF": "true" if model.lobe_half else "false",
-            "VC_LOBE_N": int(np.shape(model.lobe)[0]),
-            "VC_LOBE_BLACK": vec_literal(model.lobe_black),
-            **{f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()},
-            "VC_PARAM": int(param),
         })  # fmt: skip
         if param:
             alphas, betas = [], []
@@ -275,6 +323,9 @@ def export_mpv_shader(
                 alphas.append(literal(t.alpha))
                 betas.append(literal(t.beta))
             defines.update({
+                "VC_LOBE_HALF": "true" if model.lobe_half else "false",
+                "VC_LOBE_N": int(np.shape(model.lobe)[0]),
+                "VC_LOBE_BLACK": vec_literal(model.lobe_black),
                 "VC_DIST": literal(v.distance),
                 "VC_HEIGHT": literal(v.height or 0.0),
                 "VC_TONE_FIRST": literal(TONE_TABLE[0]),
@@ -283,10 +334,6 @@ def export_mpv_shader(
                 "VC_TONE_ALPHA_INIT": array_literal("float", alphas),
                 "VC_TONE_BETA_INIT": array_literal("float", betas),
             })  # fmt: skip
-        else:
-            defines.update(
-                {"VC_EYE": vec_literal(e), "VC_ALPHA": literal(alpha), "VC_BETA": literal(beta)}
-            )
     else:
         rows = paper_rows(model.Ww, model.Wc_inv, model.inv_lo, model.inv_hi, n_inv, alpha, beta)
         defines.update({f"VC_A{i}": vec_literal(rows[i]) for i in range(3)})
@@ -316,7 +363,10 @@ def export_mpv_shader(
     parts.append("//!HOOK OUTPUT\n")
     parts += [f"//!BIND {b}\n" for b in binds]
     parts.append(f"//!DESC viewcomp compensation ({method}, {where})\n")
-    parts.append(assemble(f"mpv_{method}.glsl", defines, directives=False).source)
+    hook = (
+        "mpv_paper.glsl" if method == "paper" else ("mpv_pixel.glsl" if param else "mpv_held.glsl")
+    )
+    parts.append(assemble(hook, defines, directives=False).source)
     parts += textures
     text = "".join(parts)
     eye_t = None if param else (float(e[0]), float(e[1]), float(e[2]))
