@@ -228,7 +228,9 @@ def test_export_errors_and_defaults(cal: Any) -> None:
     assert conservative.alpha <= typical.alpha
 
 
-def test_cli_export(cal: Any, image: np.ndarray, tmp_path: Path) -> None:
+def test_cli_export(
+    cal: Any, image: np.ndarray, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from viewcomp.cli import main
 
     bundle = tmp_path / "s.vcb"
@@ -240,6 +242,13 @@ def test_cli_export(cal: Any, image: np.ndarray, tmp_path: Path) -> None:
                  "--tone-from", str(png)]) == 0  # fmt: skip
     assert out.read_text().startswith("// viewcomp")
     assert not list(tmp_path.glob(".*partial*"))
+    guard = tmp_path / "guard.lua"
+    assert main(["export-mpv", str(bundle), "-o", str(out), "--angle", "60",
+                 "--guard", str(guard)]) == 0  # fmt: skip
+    assert 'mp.commandv("quit", "2")' in guard.read_text()
+    assert f"--script={guard}" in capsys.readouterr().out
+    with pytest.raises(SystemExit):  # never over the shader it writes
+        main(["export-mpv", str(bundle), "-o", str(out), "--guard", str(out)])
     with pytest.raises(SystemExit):
         main(["export-mpv", str(bundle), "-o", str(out), "--alpha", "0.9"])
 
@@ -407,3 +416,44 @@ def test_real_mpv_registers_a_16_9_clip_like_render(
     # Without the filter the maps are still read where the picture lies (the bars, outside
     # mpv's video rectangle, are not compensated; one column either side may be rounded).
     assert results["without the filter"][:, x0 + 1 : x0 + fw - 1].mean() < 1.5
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_a_rejected_shader_fails_loudly(
+    mpv_display: str, cal: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Debian 12's mpv rejects the //!PARAM export and a shader that does not compile, and
+    then plays uncompensated with exit status 0. With the documented command line (the
+    guard script) it exits 2 instead, and `viewcomp check-mpv` exits 2 naming mpv's error;
+    a good export plays (0) and passes the check (0)."""
+    from viewcomp.cli import main
+    from viewcomp.rt.export.mpv import guard_script, mpv_args
+    from viewcomp.rt.testing import write_clip
+
+    good, _ = export_mpv_shader(cal, angle=60.0)
+    param, _ = export_mpv_shader(cal, angle=60.0, param=True)
+    broken = good.replace("vec4 hook() {", "vec4 hook() { not glsl;")
+    guard = tmp_path / "guard.lua"
+    guard.write_text(guard_script())
+    clip = tmp_path / "clip.mp4"
+    write_clip(str(clip), [smooth_frame(W, H, seed=1)] * 50, 25, tone=False)
+    for name, text, status, said in (("good", good, 0, ""), ("param", param, 2, "PARAM"),
+                                     ("broken", broken, 2, "syntax error")):  # fmt: skip
+        shader = tmp_path / f"{name}.glsl"
+        shader.write_text(text)
+        cmd = ["mpv", "--no-config", "--vo=gpu", "--gpu-context=x11egl", "--gpu-sw",
+               *mpv_args(str(shader), (W, H), str(guard)), "--audio=no", "--osc=no",
+               f"--geometry={W}x{H}", "--length=1", str(clip)]  # fmt: skip
+        played = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+        print(f"\n{name}: mpv exit status {played.returncode}")
+        assert played.returncode == status, played.stdout + played.stderr
+        assert main(["check-mpv", str(shader), "--headless"]) == status
+        err = capsys.readouterr().err
+        assert said in err and ("rejects" in err) == (status == 2), err
+    # without the guard mpv plays the rejected shader uncompensated and says it succeeded
+    plain = subprocess.run(["mpv", "--no-config", "--vo=gpu", "--gpu-context=x11egl",
+                            "--gpu-sw", f"--glsl-shaders={tmp_path / 'param.glsl'}",
+                            "--audio=no", "--length=1", str(clip)],
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert plain.returncode == 0 and "PARAM" in plain.stdout + plain.stderr

@@ -24,6 +24,7 @@ COMMANDS = (
     "demo",
     "play",
     "export-mpv",
+    "check-mpv",
 )
 
 DESCRIPTION = """\
@@ -38,6 +39,7 @@ A typical session:
   viewcomp preview screen.vcb photo.jpg -o seen.png --angle 60   what the audience sees
   viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
   viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
+  viewcomp check-mpv comp.glsl                does the installed mpv run it?
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
   viewcomp demo                               all of the above on a built-in example
 """

@@ -56,6 +56,7 @@ reference does).
 
 from __future__ import annotations
 
+import importlib.resources
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -111,10 +112,20 @@ def fit_filter(grid: tuple[int, int]) -> str:
             f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]")  # fmt: skip
 
 
-def mpv_args(shader: str, grid: tuple[int, int]) -> list[str]:
+def mpv_args(shader: str, grid: tuple[int, int], guard: str | None = None) -> list[str]:
     """mpv's options for an exported shader (besides the screen and the files): the shader,
-    no dithering (the shader outputs exact levels) and :func:`fit_filter`."""
-    return [f"--glsl-shaders={shader}", "--dither-depth=no", f"--vf={fit_filter(grid)}"]
+    no dithering (the shader outputs exact levels), :func:`fit_filter` and, given its path,
+    the guard script (:func:`guard_script`)."""
+    args = [f"--glsl-shaders={shader}", "--dither-depth=no", f"--vf={fit_filter(grid)}"]
+    return args + ([f"--script={guard}"] if guard else [])
+
+
+def guard_script() -> str:
+    """The text of ``mpv_guard.lua`` (package data of :mod:`viewcomp.shaders`): an mpv script
+    that quits mpv with exit status 2 when the shader is missing or mpv's video output logs
+    an error (a shader it rejected), instead of playing uncompensated video."""
+    res = importlib.resources.files("viewcomp.shaders").joinpath("mpv_guard.lua")
+    return res.read_text(encoding="utf-8")
 
 
 def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
