@@ -23,6 +23,9 @@ uniform sampler2D VC_MAP7;
 uniform sampler2D VC_ROW0;
 uniform sampler2D VC_ROW1;
 uniform sampler2D VC_ROW2;
+uniform sampler2D VC_BASE0;
+uniform sampler2D VC_BASE1;
+uniform sampler2D VC_BASE2;
 uniform sampler2D VC_LUT;
 uniform float angle;
 

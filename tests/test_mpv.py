@@ -70,13 +70,14 @@ def sections(text: str) -> list[tuple[dict[str, list[str]], str]]:
 
 
 def textures(text: str) -> dict[str, np.ndarray]:
-    """Every //!TEXTURE decoded to (H, W, 4) (uint16 for rgba16, float32 for rgba32f)."""
+    """Every //!TEXTURE decoded to (H, W, 4) (uint8 for rgba8, uint16 for rgba16, float32
+    for rgba32f)."""
     out = {}
     for heads, body in sections(text):
         if "TEXTURE" not in heads:
             continue
         w, h = (int(v) for v in heads["SIZE"][0].split())
-        dtype = {"rgba16": "<u2", "rgba32f": "<f4"}[heads["FORMAT"][0]]
+        dtype = {"rgba8": "u1", "rgba16": "<u2", "rgba32f": "<f4"}[heads["FORMAT"][0]]
         data = np.frombuffer(bytes.fromhex(body.strip()), dtype)
         assert data.size == w * h * 4, heads["TEXTURE"]
         out[heads["TEXTURE"][0]] = data.reshape(h, w, 4)

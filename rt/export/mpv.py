@@ -61,6 +61,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
@@ -77,6 +78,7 @@ from viewcomp.shaders import array_literal, assemble, literal, vec_literal
 if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
 
+BASE_STEP = 4  # grid pixels per texel of the smooth base of a precision-8 export
 TONE_TABLE_STEP = 5.0  # degrees between the baked tone maps of the PARAM variant
 TONE_TABLE = np.arange(5.0, 175.0 + 1e-9, TONE_TABLE_STEP)
 
@@ -155,23 +157,38 @@ def pack_images(
     Raises:
         ExportError: a precision other than 16 or 32.
     """
-    if precision not in (16, 32):
-        raise ExportError(f"precision is 16 or 32 bits, got {precision}")
+    if precision not in (8, 16, 32):
+        raise ExportError(f"precision is 8, 16 or 32 bits, got {precision}")
     k_n = texels.shape[2]
     scale = np.ones((k_n, 4), np.float64)
     offset = np.zeros((k_n, 4), np.float64)
     if precision == 32:
         images = [np.ascontiguousarray(texels[:, :, k], np.float32) for k in range(k_n)]
         return images, scale, offset
+    top = float((1 << precision) - 1)
     images = []
     for k in range(k_n):
         f = texels[:, :, k].astype(np.float64)
         lo, hi = f.min(axis=(0, 1)), f.max(axis=(0, 1))
         span = hi - lo
         scale[k], offset[k] = span, lo
-        q = np.rint((f - lo) / np.where(span > 0, span, 1.0) * 65535.0)
-        images.append(np.clip(q, 0, 65535).astype(np.uint16))
+        q = np.rint((f - lo) / np.where(span > 0, span, 1.0) * top)
+        images.append(np.clip(q, 0, top).astype(np.uint8 if precision == 8 else np.uint16))
     return images, scale, offset
+
+
+def split_smooth(texels: np.ndarray, step: int = BASE_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel texels (H, W, K, 4) as a smooth base at 1/``step`` of the grid (area means,
+    (ceil(H/step), ceil(W/step), K, 4)) and the residual (H, W, K, 4): texels = the base
+    interpolated bilinearly at each pixel's centre (``cv2.resize`` INTER_LINEAR, edges
+    clamped: what ``mpv_held.glsl``'s ``vc_base`` computes) + the residual. The residual
+    spans far less than the texels, so 8 bits of it cost less than 16 of the texels."""
+    h, w, k_n, _ = texels.shape
+    flat = texels.reshape(h, w, k_n * 4).astype(np.float64)
+    size = (-(-w // step), -(-h // step))
+    base = cv2.resize(flat, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
+    up = cv2.resize(base, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
+    return base.reshape(size[1], size[0], k_n, 4), (flat - up).reshape(h, w, k_n, 4)
 
 
 def pack_maps(
@@ -232,7 +249,8 @@ def _lut_image(model: RuntimeModel) -> np.ndarray:
 
 def _texture(name: str, image: np.ndarray, fmt: str) -> str:
     h, w = image.shape[:2]
-    data = np.ascontiguousarray(image.astype("<u2" if fmt == "rgba16" else "<f4")).tobytes()
+    dtype = {"rgba8": "u1", "rgba16": "<u2", "rgba32f": "<f4"}[fmt]
+    data = np.ascontiguousarray(image.astype(dtype)).tobytes()
     return f"//!TEXTURE {name}\n//!SIZE {w} {h}\n//!FORMAT {fmt}\n//!FILTER NEAREST\n{data.hex()}\n"
 
 
@@ -261,7 +279,9 @@ def export_mpv_shader(
         tone_sample: an RGB frame (h, w, 3) uint8 already fitted to the grid whose tone map
             to bake (as ``viewcomp render`` would choose for it); None: full_range_sample.
         tone: (alpha, beta) to bake instead (fixed angle only).
-        precision: 16 (rgba16 maps) or 32 (rgba32f maps).
+        precision: 16 (rgba16 maps), 32 (rgba32f maps) or 8 (fixed-eye pixel method: a
+            smooth base at 1/4 of the grid in rgba32f plus the residual in rgba8 maps,
+            :func:`split_smooth`; about half the size of 16).
         source: a note for the header (e.g. the bundle's path).
 
     Raises:
@@ -305,7 +325,10 @@ def export_mpv_shader(
     }
     binds = ["HOOKED"]
     textures: list[str] = []
-    fmt = "rgba16" if precision == 16 else "rgba32f"
+    fmt = {8: "rgba8", 16: "rgba16"}.get(precision, "rgba32f")
+    if precision == 8 and (param or method != "pixel"):
+        raise ExportError("--precision 8 stores the fixed-eye pixel method's rows; fix: use "
+                          "16 with --param or --method paper")  # fmt: skip
     if method == "pixel":
         sq = inverse_position(model.inv_lo, model.inv_hi, n_inv)
         defines.update({f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()})
@@ -318,6 +341,14 @@ def export_mpv_shader(
             except np.linalg.LinAlgError:
                 msg = "the screen's mixing matrix is singular at this eye"
                 raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
+            if precision == 8:
+                base, rows = split_smooth(rows)
+                h_b, w_b = base.shape[:2]
+                for k in range(3):
+                    binds.append(f"VC_BASE{k}")
+                    textures.append(_texture(f"VC_BASE{k}", base[:, :, k], "rgba32f"))
+                defines["VC_BASE_SIZE"] = vec_literal((w_b, h_b))
+            defines["VC_SPLIT"] = int(precision == 8)
             images, scale, offset = pack_images(rows, precision)
             name = "VC_ROW"
         for k, img in enumerate(images):

@@ -33,9 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="choose the tone map for this image (a typical frame)")  # fmt: skip
     p.add_argument("--alpha", type=float, default=None, help="bake this tone-map alpha")
     p.add_argument("--beta", type=float, default=None, help="bake this tone-map beta")
-    p.add_argument("--precision", type=int, choices=[16, 32], default=16,
-                   help="bits per embedded map value (16: rgba16, half the size; 32: "
-                   "rgba32f, exact)")  # fmt: skip
+    p.add_argument("--precision", type=int, choices=[8, 16, 32], default=16,
+                   help="bits per embedded map value (16: rgba16; 32: rgba32f, exact, twice "
+                   "the size; 8: a smooth base plus an 8-bit residual, about half the size, "
+                   "fixed angle, pixel method)")  # fmt: skip
     p.add_argument("--guard", metavar="FILE.lua",
                    help="also write an mpv script that stops mpv (exit status 2) when it "
                    "rejects the shader, instead of playing uncompensated video; the printed "
