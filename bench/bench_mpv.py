@@ -4,11 +4,12 @@ For each projector grid (640x320 and 1920x1080 by default; a simulated glossy ma
 screen calibrated by :func:`viewcomp.calib.sim.testing.small_calibration`, or ``--calib``
 bundles) and each way of storing the maps (``viewcomp export-mpv --precision``: 16, 8 and
 32 for the fixed angle; ``maps16``: the 8 eye-following maps of ``--param`` with the angle
-a constant, as the fixed-angle export was stored before it folded the eye in), it exports the shader at 60
-degrees and runs Debian's mpv (``--vo=gpu``, Mesa's software OpenGL on a private Xvfb) for
-one frame of a short clip at the grid's size, with and without the shader, ``--runs`` times
-in turn. Per variant: the file's size (MB), the median wall time to the first frame with
-the shader and without, and the load time (their difference: what the shader adds).
+a constant, as the fixed-angle export was stored before it folded the eye in), it exports
+the shader at 60 degrees and runs Debian's mpv (``--vo=gpu``, Mesa's software OpenGL on a
+private Xvfb) for one frame of a short clip at the grid's size, with and without the
+shader, ``--runs`` times in turn. Per variant: the file's size (MB), the median wall time
+to the first frame with the shader and without, and the load time (their difference: what
+the shader adds).
 Timings are this machine's and its load's (see ``load_average``); never asserted.
 
 Run from the repository root (the 1080p calibration takes about a minute and 2.2 GB)::
