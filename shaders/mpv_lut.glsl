@@ -5,7 +5,8 @@
 // and the TEXTURE sections as samplers of their names. viewcomp.rt.export.mpv assembles a
 // hook: its #define lines (literals) first, then the file with its includes expanded.
 //
-// Defines: VC_LUT_W the width of VC_LUT; VC_N_INV the inverse LUT's entries N.
+// Defines: VC_GRID (vec2) the calibration grid's width and height in pixels; VC_LUT_W the
+// width of VC_LUT; VC_N_INV the inverse LUT's entries N.
 // VC_LUT has 3 rows: the forward LUT, the inverse LUT and (pixel method) the lobe table.
 
 #include "compensate_core.glsl"
@@ -38,3 +39,17 @@ vec3 vc_forward(vec3 level) {
     return a + (b - a) * (t - i0);
 }
 
+// The maps' texture coordinate of this output pixel. mpv's OUTPUT image is its video
+// rectangle (HOOKED_size), not the window: bars outside it never reach the hook. With the
+// filter that export-mpv prints (content scaled and padded to the grid in mpv, as
+// viewcomp.rt.media.frames.fit_rect does) the video has the grid's aspect and this is
+// HOOKED_pos. Without it, and with a window of the grid's aspect, the rectangle is where
+// fit_rect places content of that aspect in the grid (centred, aspect kept): the maps are
+// read there, so each pixel still gets its own correction (only the bars stay
+// uncompensated).
+vec2 vc_map_pos() {
+    vec2 s = vec2(min(VC_GRID.x / HOOKED_size.x, VC_GRID.y / HOOKED_size.y));
+    vec2 fit = clamp(floor(HOOKED_size * s + 0.5), vec2(1.0), VC_GRID);
+    vec2 off = floor(0.5 * (VC_GRID - fit));
+    return (off + HOOKED_pos * fit) / VC_GRID;
+}

@@ -1,13 +1,14 @@
-// The pixel method's mpv hook of `viewcomp export-mpv`: the maps VC_MAP0..7 (texel k of
-// viewcomp.rt.gl.compensator.pixel_texels in VC_MAPk) sampled at the output pixel, solved
-// for the eye as the GL compensator's compensate.frag.glsl does.
+// The pixel method's eye-following mpv hook of `viewcomp export-mpv --param`: the maps
+// VC_MAP0..7 (texel k of viewcomp.rt.gl.compensator.pixel_texels in VC_MAPk) sampled at the
+// output pixel, solved for the eye as the GL compensator's compensate.frag.glsl does. (A
+// fixed eye: mpv_held.glsl.)
 //
 // Defines (literals, besides those of mpv_lut.glsl): VC_S_INIT, VC_O_INIT (vec4[8]: texel k
 // of the maps = VC_S[k] t + VC_O[k] for the texture's value t), VC_LOBE_HALF (true: the
 // half-vector angle), VC_LOBE_N (the lobe table's entries, row 2 of VC_LUT), VC_LOBE_BLACK
 // (the projector leak's share of the black level), VC_SQ_SCALE,
-// VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI (pixel_t2); VC_PARAM 0: the eye VC_EYE and the tone map VC_ALPHA, VC_BETA are fixed;
-// VC_PARAM 1: both follow the parameter angle (degrees; mpv's PARAM), the eye at
+// VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI (pixel_t2). The eye and the tone map follow the parameter
+// angle (degrees; mpv's PARAM), the eye at
 // (VC_DIST cos, VC_HEIGHT, VC_DIST sin) and the tone map interpolated in a table of
 // VC_TONE_N entries from VC_TONE_FIRST degrees every VC_TONE_STEP (VC_TONE_ALPHA_INIT,
 // VC_TONE_BETA_INIT).
@@ -17,7 +18,6 @@
 const vec4 VC_S[8] = VC_S_INIT;
 const vec4 VC_O[8] = VC_O_INIT;
 
-#if VC_PARAM == 1
 const float VC_TONE_ALPHA[VC_TONE_N] = VC_TONE_ALPHA_INIT;
 const float VC_TONE_BETA[VC_TONE_N] = VC_TONE_BETA_INIT;
 
@@ -33,19 +33,10 @@ vec2 vc_tone() {
     return vec2(mix(VC_TONE_ALPHA[i], VC_TONE_ALPHA[i + 1], f),
                 mix(VC_TONE_BETA[i], VC_TONE_BETA[i + 1], f));
 }
-#else
-vec3 vc_eye() {
-    return VC_EYE;
-}
-
-vec2 vc_tone() {
-    return vec2(VC_ALPHA, VC_BETA);
-}
-#endif
 
 vec4 hook() {
-    vec2 uv = HOOKED_pos;
-    vec4 src = HOOKED_tex(uv);
+    vec4 src = HOOKED_tex(HOOKED_pos);
+    vec2 uv = vc_map_pos();
     PixelMaps m = pixel_maps(
         texture(VC_MAP0, uv) * VC_S[0] + VC_O[0], texture(VC_MAP1, uv) * VC_S[1] + VC_O[1],
         texture(VC_MAP2, uv) * VC_S[2] + VC_O[2], texture(VC_MAP3, uv) * VC_S[3] + VC_O[3],

@@ -70,13 +70,14 @@ def sections(text: str) -> list[tuple[dict[str, list[str]], str]]:
 
 
 def textures(text: str) -> dict[str, np.ndarray]:
-    """Every //!TEXTURE decoded to (H, W, 4) (uint16 for rgba16, float32 for rgba32f)."""
+    """Every //!TEXTURE decoded to (H, W, 4) (uint8 for rgba8, uint16 for rgba16, float32
+    for rgba32f)."""
     out = {}
     for heads, body in sections(text):
         if "TEXTURE" not in heads:
             continue
         w, h = (int(v) for v in heads["SIZE"][0].split())
-        dtype = {"rgba16": "<u2", "rgba32f": "<f4"}[heads["FORMAT"][0]]
+        dtype = {"rgba8": "u1", "rgba16": "<u2", "rgba32f": "<f4"}[heads["FORMAT"][0]]
         data = np.frombuffer(bytes.fromhex(body.strip()), dtype)
         assert data.size == w * h * 4, heads["TEXTURE"]
         out[heads["TEXTURE"][0]] = data.reshape(h, w, 4)
@@ -154,12 +155,12 @@ def test_structure_of_a_fixed_angle_export(cal: Any, image: np.ndarray) -> None:
     blocks = sections(text)
     hook = blocks[0][0]
     assert hook["HOOK"] == ["OUTPUT"]
-    assert hook["BIND"] == ["HOOKED", *(f"VC_MAP{k}" for k in range(8)), "VC_LUT"]
+    assert hook["BIND"] == ["HOOKED", *(f"VC_ROW{k}" for k in range(3)), "VC_LUT"]
     assert "vec4 hook()" in blocks[0][1]
     names = [h["TEXTURE"][0] for h, _ in blocks[1:]]
-    assert names == [*(f"VC_MAP{k}" for k in range(8)), "VC_LUT"]
+    assert names == [*(f"VC_ROW{k}" for k in range(3)), "VC_LUT"]
     tex = textures(text)
-    assert all(tex[f"VC_MAP{k}"].shape == (H, W, 4) for k in range(8))
+    assert all(tex[f"VC_ROW{k}"].shape == (H, W, 4) for k in range(3))
     assert tex["VC_LUT"].shape == (3, 1024, 4)
     header = text[: text.index("//!")]
     assert "grid 64x32" in header and "angle 60" in header
@@ -185,6 +186,29 @@ def test_exported_glsl_matches_the_reference(
     got = run_hook(gl_ctx, text, image)
     assert_levels_close(got, ref, f"exported GLSL ({method}, {precision} bits)")
     assert_like_the_shader(got, ref, f"exported GLSL ({method}, {precision} bits)")
+
+
+@pytest.mark.gl
+def test_precision_8_is_within_a_level_of_the_full_precision_export(
+    gl_ctx: Any, cal: Any, image: np.ndarray
+) -> None:
+    """--precision 8 (a smooth base plus an 8-bit residual) against --precision 32 (exact
+    float32 rows), both run through this project's GL path: <= 1 level in 99.9 % of
+    pixel-channels, and a smaller file than 16 bits."""
+    full, info32 = export_mpv_shader(cal, angle=60.0, tone_sample=image, precision=32)
+    small, info8 = export_mpv_shader(cal, angle=60.0, tone_sample=image, precision=8)
+    _, info16 = export_mpv_shader(cal, angle=60.0, tone_sample=image, precision=16)
+    assert info8.bytes < info16.bytes < info32.bytes
+    tex = textures(small)
+    assert tex["VC_ROW0"].dtype == np.uint8 and tex["VC_BASE0"].shape == (H // 4, W // 4, 4)
+    for frame in (
+        image,
+        np.kron(full_range_sample((H // 4, W // 4)), np.ones((4, 4, 1), np.uint8)),
+    ):
+        want = run_hook(gl_ctx, full, frame)
+        assert_levels_close(run_hook(gl_ctx, small, frame), want, "precision 8 vs 32")
+    with pytest.raises(ExportError, match="precision 8"):
+        export_mpv_shader(cal, angle=60.0, param=True, precision=8)
 
 
 @pytest.mark.gl
@@ -228,7 +252,9 @@ def test_export_errors_and_defaults(cal: Any) -> None:
     assert conservative.alpha <= typical.alpha
 
 
-def test_cli_export(cal: Any, image: np.ndarray, tmp_path: Path) -> None:
+def test_cli_export(
+    cal: Any, image: np.ndarray, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from viewcomp.cli import main
 
     bundle = tmp_path / "s.vcb"
@@ -240,6 +266,13 @@ def test_cli_export(cal: Any, image: np.ndarray, tmp_path: Path) -> None:
                  "--tone-from", str(png)]) == 0  # fmt: skip
     assert out.read_text().startswith("// viewcomp")
     assert not list(tmp_path.glob(".*partial*"))
+    guard = tmp_path / "guard.lua"
+    assert main(["export-mpv", str(bundle), "-o", str(out), "--angle", "60",
+                 "--guard", str(guard)]) == 0  # fmt: skip
+    assert 'mp.commandv("quit", "2")' in guard.read_text()
+    assert f"--script={guard}" in capsys.readouterr().out
+    with pytest.raises(SystemExit):  # never over the shader it writes
+        main(["export-mpv", str(bundle), "-o", str(out), "--guard", str(out)])
     with pytest.raises(SystemExit):
         main(["export-mpv", str(bundle), "-o", str(out), "--alpha", "0.9"])
 
@@ -262,13 +295,16 @@ def mpv_display() -> Any:
 
 
 def run_mpv(
-    shader: Path, image: Path, vo: str, tmp: Path, *extra: str
+    shader: Path, image: Path, vo: str, tmp: Path, *extra: str, size: tuple[int, int] | None = None
 ) -> tuple[np.ndarray | None, str]:
-    """mpv shows ``image`` through ``shader`` in a window of the image's size; returns the
-    window's screenshot (None if mpv failed) and mpv's log."""
+    """mpv shows ``image`` (or a video's first frame) through ``shader`` in a window of
+    ``size`` (default: the image's size); returns the window's screenshot (None if mpv
+    failed) and mpv's log."""
     sock = tmp / f"mpv-{vo}.sock"
     shot = tmp / f"shot-{vo}.png"
-    h, w = cv2.imread(str(image)).shape[:2]
+    for old in (sock, shot):  # from an earlier run in the same folder
+        old.unlink(missing_ok=True)
+    w, h = size or cv2.imread(str(image)).shape[1::-1]
     cmd = ["mpv", "--no-config", f"--vo={vo}", "--gpu-context=x11egl", "--gpu-sw",
            f"--glsl-shaders={shader}", "--dither-depth=no", f"--geometry={w}x{h}",
            "--border=no", "--pause", "--keep-open=always", "--osc=no", "--osd-level=0",
@@ -302,9 +338,9 @@ def run_mpv(
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("vo", ["gpu", "gpu-next"])
+@pytest.mark.parametrize(("vo", "precision"), [("gpu", "16"), ("gpu-next", "16"), ("gpu", "8")])
 def test_real_mpv_matches_viewcomp_render(
-    mpv_display: str, cal: Any, image: np.ndarray, tmp_path: Path, vo: str
+    mpv_display: str, cal: Any, image: np.ndarray, tmp_path: Path, vo: str, precision: str
 ) -> None:
     from viewcomp.cli import main
 
@@ -314,7 +350,7 @@ def test_real_mpv_matches_viewcomp_render(
     cv2.imwrite(str(png), image[..., ::-1])
     shader = tmp_path / "c.glsl"
     assert main(["export-mpv", str(bundle), "-o", str(shader), "--angle", "60",
-                 "--tone-from", str(png)]) == 0  # fmt: skip
+                 "--tone-from", str(png), "--precision", precision]) == 0  # fmt: skip
     rendered = tmp_path / "render.png"
     assert main(["render", str(bundle), str(png), "-o", str(rendered), "--angle", "60",
                  "--quiet"]) == 0  # fmt: skip
@@ -322,7 +358,7 @@ def test_real_mpv_matches_viewcomp_render(
     got, log = run_mpv(shader, png, vo, tmp_path)
     assert got is not None, log
     assert got.shape == want.shape
-    assert_levels_close(got, want, f"\nmpv {vo} vs `viewcomp render`")
+    assert_levels_close(got, want, f"\nmpv {vo} ({precision} bits) vs `viewcomp render`")
 
 
 @pytest.mark.gl
@@ -346,3 +382,102 @@ def test_real_mpv_runs_the_param_code_path(
     assert got is not None, log
     want = run_hook(gl_ctx, text, image, 47.5)
     assert_levels_close(got, want, "\nPARAM code path, 47.5 deg, vo=gpu")
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_real_mpv_registers_a_16_9_clip_like_render(
+    mpv_display: str, cal: Any, tmp_path: Path
+) -> None:
+    """A 16:9 clip on the 2:1 grid (pillarboxed): mpv with the documented command line
+    (mpv_args: the shader and the fit filter) shows what `viewcomp render` writes, bars
+    included. Both are compared in render's output format (mpv's window encoded by the same
+    writer, losslessly, and decoded by the same reader), so only the compensation differs."""
+    from fractions import Fraction
+
+    from viewcomp.cli import main
+    from viewcomp.rt.export.mpv import mpv_args
+    from viewcomp.rt.media.frames import Planes, fit_rect, yuv420p_to_rgb
+    from viewcomp.rt.media.video import VideoReader, VideoWriter
+    from viewcomp.rt.testing import write_clip
+
+    def first_frame(path: Path, fit: tuple[int, int] | None = None) -> Planes:
+        with VideoReader(path, fit=fit, audio="none") as reader:
+            return next(p for p in reader if isinstance(p, Planes))
+
+    bundle = tmp_path / "s.vcb"
+    cal.save(bundle)
+    clip = tmp_path / "clip.mp4"
+    write_clip(str(clip), [smooth_frame(256, 144, seed=3)] * 3, 25, tone=False,
+               options={"crf": "0", "preset": "ultrafast"})  # fmt: skip
+    x0, _, fw, _ = fit_rect(256, 144, W, H, even=True)
+    assert (x0, fw) == (4, 56)  # pillarboxed: 4 black columns each side
+    fitted = tmp_path / "fitted.png"  # the frame as render fits it: its tone map
+    cv2.imwrite(str(fitted), yuv420p_to_rgb(first_frame(clip, (W, H)))[..., ::-1])
+    shader = tmp_path / "c.glsl"
+    assert main(["export-mpv", str(bundle), "-o", str(shader), "--angle", "60",
+                 "--tone-from", str(fitted)]) == 0  # fmt: skip
+    rendered = tmp_path / "render.mp4"
+    assert main(["render", str(bundle), str(clip), "-o", str(rendered), "--angle", "60",
+                 "--quiet", "--crf", "0", "--smooth", "0"]) == 0  # fmt: skip
+    out = first_frame(rendered)
+    want = yuv420p_to_rgb(out).astype(int)
+    args = [a for a in mpv_args(str(shader), (W, H)) if not a.startswith("--glsl-shaders=")]
+    results = {}
+    for name, extra in (("documented", args), ("without the filter", ["--dither-depth=no"])):
+        got, log = run_mpv(shader, clip, "gpu", tmp_path, *extra, size=(W, H))
+        assert got is not None, log
+        again = tmp_path / f"mpv-{len(results)}.mp4"
+        with VideoWriter(again, W, H, Fraction(25), crf=0, colorspace=out.colorspace) as wr:
+            wr.write(np.ascontiguousarray(got))
+        diff = np.abs(yuv420p_to_rgb(first_frame(again)).astype(int) - want)
+        results[name] = diff
+        print(
+            f"\nmpv ({name}) vs render, 16:9 on 2:1: mean {diff.mean():.2f} levels, "
+            f"bars {diff[:, :x0].mean():.2f}, picture {diff[:, x0 + 1 : x0 + fw - 1].mean():.2f}"
+        )
+    assert results["documented"].mean() < 1.5
+    # Without the filter the maps are still read where the picture lies (the bars, outside
+    # mpv's video rectangle, are not compensated; one column either side may be rounded).
+    assert results["without the filter"][:, x0 + 1 : x0 + fw - 1].mean() < 1.5
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_a_rejected_shader_fails_loudly(
+    mpv_display: str, cal: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Debian 12's mpv rejects the //!PARAM export and a shader that does not compile, and
+    then plays uncompensated with exit status 0. With the documented command line (the
+    guard script) it exits 2 instead, and `viewcomp check-mpv` exits 2 naming mpv's error;
+    a good export plays (0) and passes the check (0)."""
+    from viewcomp.cli import main
+    from viewcomp.rt.export.mpv import guard_script, mpv_args
+    from viewcomp.rt.testing import write_clip
+
+    good, _ = export_mpv_shader(cal, angle=60.0)
+    param, _ = export_mpv_shader(cal, angle=60.0, param=True)
+    broken = good.replace("vec4 hook() {", "vec4 hook() { not glsl;")
+    guard = tmp_path / "guard.lua"
+    guard.write_text(guard_script())
+    clip = tmp_path / "clip.mp4"
+    write_clip(str(clip), [smooth_frame(W, H, seed=1)] * 50, 25, tone=False)
+    for name, text, status, said in (("good", good, 0, ""), ("param", param, 2, "PARAM"),
+                                     ("broken", broken, 2, "syntax error")):  # fmt: skip
+        shader = tmp_path / f"{name}.glsl"
+        shader.write_text(text)
+        cmd = ["mpv", "--no-config", "--vo=gpu", "--gpu-context=x11egl", "--gpu-sw",
+               *mpv_args(str(shader), (W, H), str(guard)), "--audio=no", "--osc=no",
+               f"--geometry={W}x{H}", "--length=1", str(clip)]  # fmt: skip
+        played = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+        print(f"\n{name}: mpv exit status {played.returncode}")
+        assert played.returncode == status, played.stdout + played.stderr
+        assert main(["check-mpv", str(shader), "--headless"]) == status
+        err = capsys.readouterr().err
+        assert said in err and ("rejects" in err) == (status == 2), err
+    # without the guard mpv plays the rejected shader uncompensated and says it succeeded
+    plain = subprocess.run(["mpv", "--no-config", "--vo=gpu", "--gpu-context=x11egl",
+                            "--gpu-sw", f"--glsl-shaders={tmp_path / 'param.glsl'}",
+                            "--audio=no", "--length=1", str(clip)],
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert plain.returncode == 0 and "PARAM" in plain.stdout + plain.stderr

@@ -27,6 +27,7 @@ COMMANDS = (
     "play",
     "track",
     "export-mpv",
+    "check-mpv",
 )
 
 DESCRIPTION = """\
@@ -42,6 +43,7 @@ A typical session:
   viewcomp play screen.vcb clip.mp4 --osc 127.0.0.1:9000   fullscreen, live viewing angle
   viewcomp track --camera 0 --rig screen.vcb | viewcomp play ...  follow the viewer's face
   viewcomp export-mpv screen.vcb -o comp.glsl --angle 60    a user shader for mpv
+  viewcomp check-mpv comp.glsl                does the installed mpv run it?
   viewcomp evaluate -o report                 the paper's Section 5, in simulation
   viewcomp demo                               all of the above on a built-in example
 """

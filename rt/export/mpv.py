@@ -5,16 +5,21 @@ final image at the window's size, before mpv's colour management) that evaluates
 formula of docs/RUNTIME.md per output pixel, and ``//!TEXTURE`` sections with everything
 it reads embedded as hexadecimal:
 
-- ``VC_MAP0`` .. ``VC_MAP7`` (pixel method): texel k of every pixel of the GL compensator's
-  maps (:func:`viewcomp.rt.gl.compensator.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
-  refl | the camera's lobe (R), p.xy | the camera's lobe (G, B)), ``rgba16`` (16-bit
-  unsigned normalised: value = offset + t (max - min) per texel channel over the grid) or,
-  with ``precision=32``, ``rgba32f`` (exact, twice the size);
+- ``VC_ROW0`` .. ``VC_ROW2`` (pixel method, a fixed eye): per pixel the affine map from the
+  frame's forward-LUT value to the inverse LUT's position, the eye and the tone map folded
+  in (:func:`held_rows`: the GL compensator's view cache), 12 numbers per pixel;
+- ``VC_MAP0`` .. ``VC_MAP7`` (pixel method, ``param``: the eye follows the angle): texel k
+  of every pixel of the GL compensator's maps
+  (:func:`viewcomp.rt.gl.compensator.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
+  refl | the camera's lobe (R), p.xy | the camera's lobe (G, B)), 32 numbers per pixel;
+- both ``rgba16`` (16-bit unsigned normalised: value = offset + t (max - min) per texel
+  channel over the grid) or, with ``precision=32``, ``rgba32f`` (exact, twice the size);
 - ``VC_LUT`` (``rgba32f``, 3 rows): row 0 the forward LUT at the 256 levels, row 1 the
   inverse LUT (N entries on [inv_lo, inv_hi]), row 2 the specular lobe's table (pixel
   method; zeros for the paper's).
 
-The hook's GLSL is not written here: it is ``mpv_pixel.glsl`` or ``mpv_paper.glsl`` of
+The hook's GLSL is not written here: it is ``mpv_held.glsl``, ``mpv_pixel.glsl`` (PARAM)
+or ``mpv_paper.glsl`` of
 :mod:`viewcomp.shaders` with the formula of ``compensate_core.glsl`` (the GL compensator's)
 expanded into it, after
 ``#define`` lines with this export's numbers (the same CPU folding as the GL compensator:
@@ -34,26 +39,37 @@ a sample (``tone_from``, e.g. a typical frame: the same choice ``viewcomp render
 that image), or by default from :func:`full_range_sample`, a conservative map that keeps
 every colour of any content reachable.
 
-Sampling: the maps are read with NEAREST filtering at ``HOOKED_pos``; when mpv's output is
-the grid's size (fullscreen on the projector whose grid was calibrated) every output pixel
-reads exactly its own texel. Input levels are ``255 * HOOKED`` (fractional for video after
-mpv's yuv -> RGB; the forward LUT interpolates linearly, as the reference does).
+Registration: ``viewcomp render`` and ``play`` fit every frame to the grid (scaled, aspect
+kept, centred on black: :func:`viewcomp.rt.media.frames.fit_rect`) and compensate the bars
+too. mpv's OUTPUT hook sees only mpv's video rectangle, so the documented command line
+(:func:`mpv_args`) makes mpv do that same fit itself, before the hook:
+:func:`fit_filter`, libavfilter's ``scale`` (bilinear, left-sited chroma: the same swscale
+call as :class:`viewcomp.rt.media.video.VideoReader`'s) and ``pad`` to the grid's size.
+The video then has the grid's aspect, the hook covers the whole window (black bars
+included, compensated as ``render`` does) and the maps are read with NEAREST filtering at
+``HOOKED_pos``: at the grid's size each output pixel reads exactly its own texel. Without
+the filter the hook still reads the maps where the picture lies in the grid (``mpv_lut.glsl``'s
+``vc_map_pos``), but mpv's own bars stay uncompensated. Input levels are ``255 * HOOKED``
+(fractional for video after mpv's yuv -> RGB; the forward LUT interpolates linearly, as the
+reference does).
 """
 
 from __future__ import annotations
 
+import importlib.resources
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.model.reference import screen_at, tone_terms
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.rt.gl.compensator import (
-    MAP_TEXELS,
     inverse_position,
     paper_rows,
     pixel_texels,
@@ -63,6 +79,7 @@ from viewcomp.shaders import array_literal, assemble, literal, vec_literal
 if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
 
+BASE_STEP = 4  # grid pixels per texel of the smooth base of a precision-8 export
 TONE_TABLE_STEP = 5.0  # degrees between the baked tone maps of the PARAM variant
 TONE_TABLE = np.arange(5.0, 175.0 + 1e-9, TONE_TABLE_STEP)
 
@@ -86,6 +103,34 @@ class MpvShaderInfo:
     bytes: int
 
 
+def fit_filter(grid: tuple[int, int]) -> str:
+    """mpv's ``--vf`` value that fits any video to a (W, H) grid exactly as ``viewcomp
+    render``/``play`` do: scaled with aspect kept to even sizes (bilinear, chroma sited left
+    as MPEG-2/H.264 put it, which is what PyAV's reformat assumes), centred on black, square
+    pixels. The same libswscale call as :class:`viewcomp.rt.media.video.VideoReader`, so the
+    planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/test_mpv.py)."""
+    w, h = grid
+    return (f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"
+            ":flags=bilinear:in_h_chr_pos=0:out_h_chr_pos=0"
+            f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]")  # fmt: skip
+
+
+def mpv_args(shader: str, grid: tuple[int, int], guard: str | None = None) -> list[str]:
+    """mpv's options for an exported shader (besides the screen and the files): the shader,
+    no dithering (the shader outputs exact levels), :func:`fit_filter` and, given its path,
+    the guard script (:func:`guard_script`)."""
+    args = [f"--glsl-shaders={shader}", "--dither-depth=no", f"--vf={fit_filter(grid)}"]
+    return args + ([f"--script={guard}"] if guard else [])
+
+
+def guard_script() -> str:
+    """The text of ``mpv_guard.lua`` (package data of :mod:`viewcomp.shaders`): an mpv script
+    that quits mpv with exit status 2 when the shader is missing or mpv's video output logs
+    an error (a shader it rejected), instead of playing uncompensated video."""
+    res = importlib.resources.files("viewcomp.shaders").joinpath("mpv_guard.lua")
+    return res.read_text(encoding="utf-8")
+
+
 def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
     """A thumbnail (h, w, 3) uint8 where every neighbourhood holds black, white, the
     primaries, the secondaries and mid grey: a tone map chosen on it keeps all of them
@@ -100,40 +145,92 @@ def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
     return colours[(xx + 3 * yy) % len(colours)]
 
 
-def pack_maps(
-    model: RuntimeModel, precision: int = 16
+def pack_images(
+    texels: np.ndarray, precision: int = 16
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """The pixel method's maps (:func:`~viewcomp.rt.gl.compensator.pixel_texels`) as 8
-    (H, W, 4) images, image k = texel k of every pixel.
+    """Per-pixel texels (H, W, K, 4) as K (H, W, 4) images, image k = texel k of every pixel.
 
     ``precision`` 16: uint16 images and per texel channel (scale, offset), value = offset
     + t scale with t = q / 65535 the normalised texel (scale = max - min over the grid);
-    32: float32 images with scale 1 and offset 0. Returns (images, scale (8, 4), offset
-    (8, 4)).
+    32: float32 images with scale 1 and offset 0. Returns (images, scale (K, 4), offset
+    (K, 4)).
 
     Raises:
-        ExportError: a precision other than 16 or 32, or a model array that is missing, of
-            the wrong shape or not finite.
+        ExportError: a precision other than 16 or 32.
     """
-    if precision not in (16, 32):
-        raise ExportError(f"precision is 16 or 32 bits, got {precision}")
-    try:
-        texels = pixel_texels(model)
-    except ValueError as exc:
-        raise ExportError(f"the calibration's runtime model: {exc}") from None
-    scale = np.ones((MAP_TEXELS, 4), np.float64)
-    offset = np.zeros((MAP_TEXELS, 4), np.float64)
+    if precision not in (8, 16, 32):
+        raise ExportError(f"precision is 8, 16 or 32 bits, got {precision}")
+    k_n = texels.shape[2]
+    scale = np.ones((k_n, 4), np.float64)
+    offset = np.zeros((k_n, 4), np.float64)
     if precision == 32:
-        return [np.ascontiguousarray(texels[:, :, k]) for k in range(MAP_TEXELS)], scale, offset
+        images = [np.ascontiguousarray(texels[:, :, k], np.float32) for k in range(k_n)]
+        return images, scale, offset
+    top = float((1 << precision) - 1)
     images = []
-    for k in range(MAP_TEXELS):
+    for k in range(k_n):
         f = texels[:, :, k].astype(np.float64)
         lo, hi = f.min(axis=(0, 1)), f.max(axis=(0, 1))
         span = hi - lo
         scale[k], offset[k] = span, lo
-        q = np.rint((f - lo) / np.where(span > 0, span, 1.0) * 65535.0)
-        images.append(np.clip(q, 0, 65535).astype(np.uint16))
+        q = np.rint((f - lo) / np.where(span > 0, span, 1.0) * top)
+        images.append(np.clip(q, 0, top).astype(np.uint8 if precision == 8 else np.uint16))
     return images, scale, offset
+
+
+def split_smooth(texels: np.ndarray, step: int = BASE_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel texels (H, W, K, 4) as a smooth base at 1/``step`` of the grid (area means,
+    (ceil(H/step), ceil(W/step), K, 4)) and the residual (H, W, K, 4): texels = the base
+    interpolated bilinearly at each pixel's centre (``cv2.resize`` INTER_LINEAR, edges
+    clamped: what ``mpv_held.glsl``'s ``vc_base`` computes) + the residual. The residual
+    spans far less than the texels, so 8 bits of it cost less than 16 of the texels."""
+    h, w, k_n, _ = texels.shape
+    flat = texels.reshape(h, w, k_n * 4).astype(np.float64)
+    size = (-(-w // step), -(-h // step))
+    base = cv2.resize(flat, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
+    up = cv2.resize(base, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
+    return base.reshape(size[1], size[0], k_n, 4), (flat - up).reshape(h, w, k_n, 4)
+
+
+def pack_maps(
+    model: RuntimeModel, precision: int = 16
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The pixel method's maps (:func:`~viewcomp.rt.gl.compensator.pixel_texels`) as 8
+    images (:func:`pack_images`): what the eye-following (``//!PARAM``) hook reads.
+
+    Raises:
+        ExportError: a bad precision, or a model array that is missing, of the wrong shape
+            or not finite.
+    """
+    try:
+        texels = pixel_texels(model)
+    except ValueError as exc:
+        raise ExportError(f"the calibration's runtime model: {exc}") from None
+    return pack_images(texels, precision)
+
+
+def held_rows(
+    model: RuntimeModel, eye: np.ndarray, alpha: float, beta: float, sq: dict[str, np.ndarray]
+) -> np.ndarray:
+    """The pixel method for one eye and tone map as one affine map per pixel, (H, W, 3, 4)
+    float64: row i = (G_i | w_i) with t2_i = G_i . pw + w_i the inverse LUT's squared
+    position (``pixel_t2``'s, before its clamp) of the frame's forward-LUT value pw.
+
+    The GL compensator's view cache (docs/RUNTIME.md) with the tone map folded in:
+    y = M^-1 (alpha (Ww pw + Aw) + beta 1 - A) = alpha M^-1 Ww pw + alpha u + beta v + c,
+    M and A from :func:`~viewcomp.calib.model.reference.screen_at`, (u, v, c) from
+    :func:`~viewcomp.calib.model.reference.tone_terms`, solved in float64 on the CPU;
+    then t2 = scale y - off (``sq``: :func:`~viewcomp.rt.gl.compensator.inverse_position`).
+    12 numbers per pixel instead of the 32 of the maps.
+    """
+    m, amb = screen_at(model, np.asarray(eye, np.float32))
+    m_inv = np.linalg.inv(m.astype(np.float64))
+    g = np.einsum("hwij,hwjk->hwik", m_inv, model.Ww.astype(np.float64))
+    u, v, c = tone_terms(m_inv, model.Aw.astype(np.float64), amb.astype(np.float64))
+    rows = np.concatenate([alpha * g, (alpha * u + beta * v + c)[..., None]], axis=-1)
+    rows *= np.asarray(sq["scale"], np.float64)[:, None]
+    rows[..., 3] -= np.asarray(sq["off"], np.float64)
+    return rows
 
 
 def _lut_image(model: RuntimeModel) -> np.ndarray:
@@ -153,7 +250,8 @@ def _lut_image(model: RuntimeModel) -> np.ndarray:
 
 def _texture(name: str, image: np.ndarray, fmt: str) -> str:
     h, w = image.shape[:2]
-    data = np.ascontiguousarray(image.astype("<u2" if fmt == "rgba16" else "<f4")).tobytes()
+    dtype = {"rgba8": "u1", "rgba16": "<u2", "rgba32f": "<f4"}[fmt]
+    data = np.ascontiguousarray(image.astype(dtype)).tobytes()
     return f"//!TEXTURE {name}\n//!SIZE {w} {h}\n//!FORMAT {fmt}\n//!FILTER NEAREST\n{data.hex()}\n"
 
 
@@ -182,7 +280,9 @@ def export_mpv_shader(
         tone_sample: an RGB frame (h, w, 3) uint8 already fitted to the grid whose tone map
             to bake (as ``viewcomp render`` would choose for it); None: full_range_sample.
         tone: (alpha, beta) to bake instead (fixed angle only).
-        precision: 16 (rgba16 maps) or 32 (rgba32f maps).
+        precision: 16 (rgba16 maps), 32 (rgba32f maps) or 8 (fixed-eye pixel method: a
+            smooth base at 1/4 of the grid in rgba32f plus the residual in rgba8 maps,
+            :func:`split_smooth`; about half the size of 16).
         source: a note for the header (e.g. the bundle's path).
 
     Raises:
@@ -220,26 +320,44 @@ def export_mpv_shader(
     n_inv = int(model.inv_lut.shape[0])
     lut = _lut_image(model)
     defines: dict[str, str | int | float] = {
+        "VC_GRID": vec_literal((w, h)),
         "VC_LUT_W": literal(lut.shape[1]),
         "VC_N_INV": n_inv,
     }
     binds = ["HOOKED"]
     textures: list[str] = []
+    fmt = {8: "rgba8", 16: "rgba16"}.get(precision, "rgba32f")
+    if precision == 8 and (param or method != "pixel"):
+        raise ExportError("--precision 8 stores the fixed-eye pixel method's rows; fix: use "
+                          "16 with --param or --method paper")  # fmt: skip
     if method == "pixel":
-        images, scale, offset = pack_maps(model, precision)
-        fmt = "rgba16" if precision == 16 else "rgba32f"
-        for k, img in enumerate(images):
-            binds.append(f"VC_MAP{k}")
-            textures.append(_texture(f"VC_MAP{k}", img, fmt))
         sq = inverse_position(model.inv_lo, model.inv_hi, n_inv)
+        defines.update({f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()})
+        if param:
+            images, scale, offset = pack_maps(model, precision)
+            name = "VC_MAP"
+        else:
+            try:
+                rows = held_rows(model, e, alpha, beta, sq)
+            except np.linalg.LinAlgError:
+                msg = "the screen's mixing matrix is singular at this eye"
+                raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
+            if precision == 8:
+                base, rows = split_smooth(rows)
+                h_b, w_b = base.shape[:2]
+                for k in range(3):
+                    binds.append(f"VC_BASE{k}")
+                    textures.append(_texture(f"VC_BASE{k}", base[:, :, k], "rgba32f"))
+                defines["VC_BASE_SIZE"] = vec_literal((w_b, h_b))
+            defines["VC_SPLIT"] = int(precision == 8)
+            images, scale, offset = pack_images(rows, precision)
+            name = "VC_ROW"
+        for k, img in enumerate(images):
+            binds.append(f"{name}{k}")
+            textures.append(_texture(f"{name}{k}", img, fmt))
         defines.update({
             "VC_S_INIT": array_literal("vec4", [vec_literal(r) for r in scale]),
             "VC_O_INIT": array_literal("vec4", [vec_literal(r) for r in offset]),
-            "VC_LOBE_HALF": "true" if model.lobe_half else "false",
-            "VC_LOBE_N": int(np.shape(model.lobe)[0]),
-            "VC_LOBE_BLACK": vec_literal(model.lobe_black),
-            **{f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()},
-            "VC_PARAM": int(param),
         })  # fmt: skip
         if param:
             alphas, betas = [], []
@@ -248,6 +366,9 @@ def export_mpv_shader(
                 alphas.append(literal(t.alpha))
                 betas.append(literal(t.beta))
             defines.update({
+                "VC_LOBE_HALF": "true" if model.lobe_half else "false",
+                "VC_LOBE_N": int(np.shape(model.lobe)[0]),
+                "VC_LOBE_BLACK": vec_literal(model.lobe_black),
                 "VC_DIST": literal(v.distance),
                 "VC_HEIGHT": literal(v.height or 0.0),
                 "VC_TONE_FIRST": literal(TONE_TABLE[0]),
@@ -256,10 +377,6 @@ def export_mpv_shader(
                 "VC_TONE_ALPHA_INIT": array_literal("float", alphas),
                 "VC_TONE_BETA_INIT": array_literal("float", betas),
             })  # fmt: skip
-        else:
-            defines.update(
-                {"VC_EYE": vec_literal(e), "VC_ALPHA": literal(alpha), "VC_BETA": literal(beta)}
-            )
     else:
         rows = paper_rows(model.Ww, model.Wc_inv, model.inv_lo, model.inv_hi, n_inv, alpha, beta)
         defines.update({f"VC_A{i}": vec_literal(rows[i]) for i in range(3)})
@@ -272,8 +389,9 @@ def export_mpv_shader(
         f"// Tone map: alpha {alpha:.4f}, beta {beta:.5f}"
         + (" (per angle from a table)" if param else "")
         + ".",
-        "// Use: mpv --glsl-shaders=THIS_FILE --dither-depth=no --fullscreen VIDEO, on the",
-        f"// projector, ideally at {w}x{h} (the maps are sampled at each output pixel).",
+        f"// Use, fullscreen on the projector (ideally at {w}x{h}):",
+        "//   mpv " + " ".join(mpv_args("THIS_FILE", (w, h))) + " --fullscreen VIDEO",
+        "// (the --vf fits the video to the grid as `viewcomp render` does, bars included).",
     ]
     if param:
         header.append("// Needs vo=gpu-next with a libplacebo that supports PARAM; set the "
@@ -288,7 +406,10 @@ def export_mpv_shader(
     parts.append("//!HOOK OUTPUT\n")
     parts += [f"//!BIND {b}\n" for b in binds]
     parts.append(f"//!DESC viewcomp compensation ({method}, {where})\n")
-    parts.append(assemble(f"mpv_{method}.glsl", defines, directives=False).source)
+    hook = (
+        "mpv_paper.glsl" if method == "paper" else ("mpv_pixel.glsl" if param else "mpv_held.glsl")
+    )
+    parts.append(assemble(hook, defines, directives=False).source)
     parts += textures
     text = "".join(parts)
     eye_t = None if param else (float(e[0]), float(e[1]), float(e[2]))

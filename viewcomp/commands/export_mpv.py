@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 
 from viewcomp.commands._common import (
@@ -24,7 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "//!PARAM angle set by --glsl-shader-opts=angle=DEG (vo=gpu-next with a libplacebo "
         "that supports it; see docs/PLAYER.md). The tone map is baked too: from "
         "--tone-from (a typical frame), or a conservative one that keeps any content in "
-        "range. Play with: mpv --glsl-shaders=FILE --dither-depth=no --fullscreen VIDEO",
+        "range. It prints the mpv command line to play with (its --vf fits the video to the "
+        "calibration grid as `viewcomp render` does; with --guard, mpv stops when it "
+        "rejects the shader). `viewcomp check-mpv FILE` checks the installed mpv runs it.",
     )
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("-o", "--output", required=True, help="the shader file to write (.glsl)")
@@ -36,9 +39,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="choose the tone map for this image (a typical frame)")  # fmt: skip
     p.add_argument("--alpha", type=positive, default=None, help="bake this tone-map alpha (> 0)")
     p.add_argument("--beta", type=finite, default=None, help="bake this tone-map beta")
-    p.add_argument("--precision", type=int, choices=[16, 32], default=16,
-                   help="bits per embedded map value (16: rgba16, half the size; 32: "
-                   "rgba32f, exact)")  # fmt: skip
+    p.add_argument("--precision", type=int, choices=[8, 16, 32], default=16,
+                   help="bits per embedded map value (16: rgba16; 32: rgba32f, exact, twice "
+                   "the size; 8: a smooth base plus an 8-bit residual, about half the size, "
+                   "fixed angle, pixel method)")  # fmt: skip
+    p.add_argument("--guard", metavar="FILE.lua",
+                   help="also write an mpv script that stops mpv (exit status 2) when it "
+                   "rejects the shader, instead of playing uncompensated video; the printed "
+                   "command line loads it with --script")  # fmt: skip
     p.set_defaults(run=run)
 
 
@@ -49,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.io.imageio import read_rgb8
     from viewcomp.cli import UsageError
-    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader
+    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, guard_script, mpv_args
     from viewcomp.rt.media.frames import fit_rgb
 
     if (args.alpha is None) != (args.beta is None):
@@ -77,8 +85,13 @@ def run(args: argparse.Namespace) -> int:
         )
     except ExportError as exc:
         raise UsageError(str(exc)) from None
+    if args.guard and Path(args.guard).resolve() in (Path(args.output).resolve(),
+                                                     Path(args.calib).resolve()):  # fmt: skip
+        raise UsageError("--guard names the shader or the calibration; give its own file")
     try:
         write_text_atomic(args.output, text, encoding="ascii")
+        if args.guard:
+            write_text_atomic(args.guard, guard_script(), encoding="utf-8")
     except OSError as exc:
         raise OutputError(f"cannot write {describe_os_error(exc, args.output)}") from None
     w, h = info.grid
@@ -86,6 +99,9 @@ def run(args: argparse.Namespace) -> int:
         f"angle {info.angle:g} deg" if info.angle is not None else "fixed eye")  # fmt: skip
     print(f"wrote {args.output}: {info.bytes / 1e6:.1f} MB, {info.method} method, {where}, "
           f"grid {w}x{h}, alpha {info.alpha:.3f} beta {info.beta:.4f}")  # fmt: skip
+    print("play fullscreen on the projector with: mpv "
+          + " ".join(shlex.quote(a) for a in mpv_args(args.output, info.grid, args.guard))
+          + " --fullscreen VIDEO")  # fmt: skip
     return 0
 
 
