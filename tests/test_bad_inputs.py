@@ -265,6 +265,23 @@ R = ["render", "cal.vcb", "photo.png", "-o", "out.png"]  # a render that would s
 RV = ["render", "cal.vcb", "clip.mp4", "-o", "out.mp4", "--backend", "cpu", "--quiet"]
 
 CASES = [
+    # --- the commands of the preview, the tracker and the mpv check
+    Case(
+        "preview-onto-its-input",
+        ["preview", "cal.vcb", "photo.png", "-o", "photo.png", "--angle", "60"],
+        "photo.png",
+    ),
+    Case(
+        "preview-angle-200",
+        ["preview", "cal.vcb", "photo.png", "-o", "seen.png", "--angle", "200"],
+        "200",
+    ),
+    Case(
+        "track-rig-without-an-audience-camera",
+        ["track", "--camera", "nothing-here.mp4", "--rig", "cal.vcb"],
+        "add a [tracker] section",
+    ),
+    Case("check-mpv-missing-shader", ["check-mpv", "missing.glsl"], "missing.glsl"),
     # --- outputs that would destroy inputs (data destroyed, exit 0 before)
     Case(
         "render-image-onto-itself",
@@ -590,8 +607,8 @@ CASES = [
     Case(
         "bundle-short-array",
         [*R, "--angle", "60"],
-        "member pixel.kappa.npy is <f8 [2]",
-        [_npy_member("pixel.kappa", np.zeros(2), listing=False)],
+        "member pixel.baseline.npy is <f8 [2]",
+        [_npy_member("pixel.baseline", np.zeros(2), listing=False)],
     ),
     Case(
         "bundle-object-array",
