@@ -8,10 +8,10 @@ The specular ratio of the real to the white screen (ambient removed), per pixel 
 is a diffuse baseline b plus a lobe that depends on the angle between the normal and the half
 vector (``half``, the microfacet parametrisation) or between the mirror direction and the
 view (``mirror``, Phong's). Measured glossy lobes are a ~1-degree spike on a broad haze, often
-coloured; no single power law fits them. So the lobe is a table: the median of s in each
-cell of the table's coordinate over the pixels the camera saw there, lightly smoothed, minus
-the baseline (the level of the farthest angles seen), never negative. Both parametrisations
-are fitted and the one with the smaller residual is kept.
+coloured; no single power law fits them. So the lobe is a table: the median of s over the
+pixels the camera saw in each bin of the table's coordinate, lightly smoothed, minus the
+baseline (below), never negative. Both parametrisations are fitted and the one with the
+smaller residual is kept.
 
 The baseline is the higher of two levels: the floor of a fit of b + c exp(-k t^2) to the
 outer part of the curve (a Phong lobe's shape, and a smooth tail for any lobe), and the level
