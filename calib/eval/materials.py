@@ -34,7 +34,7 @@ from viewcomp.calib.comp.tonemap import choose_predicted_tone_map
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
-from viewcomp.calib.fit.calibrate import Calibration, calibrate
+from viewcomp.calib.fit.calibrate import Calibration, calibrate, finite_list
 from viewcomp.calib.io.captureset import capture_set_from_raw
 from viewcomp.calib.io.hdr import DEFAULT_STOPS
 from viewcomp.calib.model.reference import tone_terms
@@ -298,8 +298,8 @@ def materials(
                     "param": lobe.param,
                     "rms": lobe.rms.tolist(),
                     "rms_other_param": lobe.rms_other.tolist(),
-                    "rms_phong": _finite(lobe.rms_phong),
-                    "rms_power_law": _finite(lobe.rms_power_law),
+                    "rms_phong": finite_list(lobe.rms_phong),
+                    "rms_power_law": finite_list(lobe.rms_power_law),
                     "peak": lobe.peak.tolist(),
                     "baseline": lobe.baseline.tolist(),
                     "black_share": world.cal.pixel.black_share.tolist(),
@@ -335,8 +335,3 @@ def check_materials(entries: list[dict[str, Any]]) -> dict[str, Any]:
             "no_gap": [e["material"] for e in done if e["summary"]["gap_closed"] is None],
         }
     return out
-
-
-def _finite(values: np.ndarray) -> list[float | None]:
-    """JSON-safe floats: NaN (a comparison fit that could not run) as None."""
-    return [float(v) if np.isfinite(v) else None for v in np.asarray(values, float)]

@@ -106,8 +106,8 @@ class Calibration:
                 "t_seen": list(lobe.t_seen),
                 "rms": lobe.rms.tolist(),
                 "rms_other": lobe.rms_other.tolist(),
-                "rms_phong": _finite_list(lobe.rms_phong),
-                "rms_power_law": _finite_list(lobe.rms_power_law),
+                "rms_phong": finite_list(lobe.rms_phong),
+                "rms_power_law": finite_list(lobe.rms_power_law),
                 "peak": lobe.peak.tolist(),
                 "samples": lobe.samples,
                 "masked": lobe.masked,
@@ -216,8 +216,8 @@ class Calibration:
         return cls(rig=rig, paper=paper, pixel=pixel, info=dict(meta.get("info", {})))
 
 
-def _finite_list(a: np.ndarray) -> list[float | None]:
-    """JSON-safe floats: NaN (a comparison fit that could not run) as null."""
+def finite_list(a: np.ndarray) -> list[float | None]:
+    """JSON-safe floats: NaN (a comparison fit that could not run) as None (null)."""
     return [float(v) if np.isfinite(v) else None for v in np.asarray(a, np.float64)]
 
 

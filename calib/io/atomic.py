@@ -214,7 +214,7 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
             os.replace(target, old / "old")
         try:
             os.replace(tmp, target)
-        except BaseException:
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             if old is not None:
                 os.replace(old / "old", target)
                 _remove_tree(old, None)

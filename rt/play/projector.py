@@ -33,7 +33,7 @@ class GlfwProjector:
         self._session = GlfwSession(DeviceError)
         try:
             self._open(monitor, vsync)
-        except BaseException:
+        except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             self._session.close()
             raise
 

@@ -243,7 +243,7 @@ def build(
                          size=device.resolution)  # fmt: skip
     try:
         return Pipeline(source, device, options, publishers)
-    except BaseException:
+    except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
         source.close()
         raise
 
