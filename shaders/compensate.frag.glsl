@@ -21,7 +21,8 @@
 
 // Variant (one program each; llvmpipe would otherwise run every branch for every pixel):
 // METHOD 0 identity, 1 pixel, 2 paper, 3 pixel from the view cache, 4 the view cache itself
-// (see "View cache" below); INPUT 0 the RGB8UI texture u_rgb, 1 yuv420p planes (yuv.glsl).
+// (see "View cache" below), 5 pixel for an audience of several viewers (u_eyes), 6 the view
+// cache of an audience; INPUT 0 the RGB8UI texture u_rgb, 1 yuv420p planes (yuv.glsl).
 #ifndef METHOD
 #define METHOD 1
 #endif
@@ -57,6 +58,9 @@
 #ifndef LOBE_BLACK
 #define LOBE_BLACK vec3(0.0)  // the projector leak's share of the black level
 #endif
+#ifndef MAX_VIEWERS
+#define MAX_VIEWERS 16  // viewcomp.calib.world.audience.MAX_VIEWERS
+#endif
 
 #include "yuv.glsl"
 #include "compensate_core.glsl"
@@ -73,6 +77,10 @@ uniform samplerBuffer u_inv;  // RG32F, 3 x N: [N c + i] = (inv_lut[i, c], inv_l
 // texels per pixel side by side: texel k of grid pixel (x, y) is u_maps[8 (y W + x) + k].
 uniform samplerBuffer u_maps;
 uniform samplerBuffer u_lobe;  // RGBA32F, LOBE_N: the lobe table (RuntimeModel.lobe) | 0
+// METHODs 5 and 6: the audience, u_n_eyes viewers (eye.xyz metres, weight; weights sum to
+// 1). Uniforms, not flat inputs: these variants run per eye change, not per frame.
+uniform vec4 u_eyes[MAX_VIEWERS];
+uniform int u_n_eyes;
 
 vec2 inv_pair(int c, int i) {
     return texelFetch(u_inv, N_INV * c + i).xy;
@@ -107,6 +115,17 @@ uniform samplerBuffer u_view;
 
 out vec4 frag_color;
 
+// The audience's normal equations at one pixel, summed over the viewers in order
+// (audience_add; reference.audience_normal).
+void audience_normal(PixelMaps m, out mat3 nn, out mat3 s, out vec3 q) {
+    nn = mat3(0.0);
+    s = mat3(0.0);
+    q = vec3(0.0);
+    for (int k = 0; k < u_n_eyes; ++k) {
+        audience_add(m, u_eyes[k].xyz, u_eyes[k].w, LOBE_HALF, LOBE_N, LOBE_BLACK, nn, s, q);
+    }
+}
+
 // Forward LUT at integer levels. u_fwd holds reference.lut_forward(fwd_lut, level) for
 // every level 0..255, computed by numpy, so this is bit-identical to the reference.
 vec3 lut_forward(ivec3 level) {
@@ -115,7 +134,7 @@ vec3 lut_forward(ivec3 level) {
 }
 
 void main() {
-#if METHOD == 4
+#if METHOD == 4 || METHOD == 6
     // One texel of the view cache: viewport = the cache texture, origin at (0, 0).
     ivec2 q = ivec2(gl_FragCoord.xy);
     ivec2 block = ivec2(VIEW_BX, VIEW_BY);
@@ -123,8 +142,16 @@ void main() {
     int k = sub.x + VIEW_BX * sub.y;
     vec4 g0, g1, g2;
     vec3 b, d;
+#if METHOD == 4
     view_terms(read_maps(q / block), v_frame[0].xyz, LOBE_HALF, LOBE_N, LOBE_BLACK, SQ_SCALE,
                SQ_OFF, g0, g1, g2, b, d);
+#else
+    PixelMaps m = read_maps(q / block);
+    mat3 nn, s;
+    vec3 qv;
+    audience_normal(m, nn, s, qv);
+    audience_view_terms(nn, s, qv, m, SQ_SCALE, SQ_OFF, g0, g1, g2, b, d);
+#endif
     frag_color = k == 0 ? g0 : (k == 1 ? g1 : (k == 2 ? g2 : (k == 3 ? vec4(b, 0.0)
                  : (k == 4 ? vec4(d, 0.0) : vec4(0.0)))));
 #else
@@ -139,6 +166,13 @@ void main() {
 #if METHOD == 1
     vec3 y = solve_pixel(read_maps(p), lut_forward(level), v_frame[0].xyz, v_frame[0].w,
                          v_frame[1].x, LOBE_HALF, LOBE_N, LOBE_BLACK);
+    vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
+#elif METHOD == 5
+    PixelMaps m = read_maps(p);
+    mat3 nn, s;
+    vec3 q;
+    audience_normal(m, nn, s, q);
+    vec3 y = solve_audience(nn, s, q, m, lut_forward(level), v_frame[0].w, v_frame[1].x);
     vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 3
     vec3 t2 = cached_t2(VIEW(p, 0), VIEW(p, 1), VIEW(p, 2), VIEW(p, 3).xyz, VIEW(p, 4).xyz,

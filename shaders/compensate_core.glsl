@@ -123,6 +123,43 @@ void view_terms(PixelMaps m, vec3 eye, bool half_angle, int n_lobe, vec3 share, 
     g2 = vec4(gc0.z, gc1.z, gc2.z, a.z);
 }
 
+// An audience (docs/MODEL.md section 6): viewer k's share of the normal equations
+// N y = S T - q of sum_k w_k |M_k y + A_k - T|^2 (reference.audience_normal):
+// N += w M^T M, S += w M^T, q += w M^T A, with M and A the screen at the viewer's eye.
+void audience_add(PixelMaps m, vec3 eye, float w, bool half_angle, int n_lobe, vec3 share,
+                  inout mat3 nn, inout mat3 s, inout vec3 q) {
+    vec3 ds = lobe_change(m, eye, half_angle, n_lobe);
+    mat3 mt = mat3(m.c0.xyz + ds.x * m.w0.xyz, m.c1.xyz + ds.y * m.w1.xyz,
+                   m.c2.xyz + ds.z * m.w2.xyz);  // columns = the rows of M: M^T
+    nn += w * (mt * transpose(mt));
+    s += w * mt;
+    q += w * (mt * black_at(m, ds, share));
+}
+
+// An audience, solved: the projector light y = N^-1 (S (alpha (Ww pw + Aw) + beta) - q)
+// (unclamped; reference.target_to_projector).
+vec3 solve_audience(mat3 nn, mat3 s, vec3 q, PixelMaps m, vec3 pw, float alpha, float beta) {
+    vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
+        + vec3(m.w0.w, m.w1.w, m.w2.w);
+    return inverse(nn) * (s * (alpha * cw + beta) - q);
+}
+
+// The view cache of one pixel for a held audience: view_terms with P = N^-1 S in place of
+// M^-1 and d = N^-1 q in place of M^-1 A (reference.audience_solve), scaled and shifted as
+// view_terms does.
+void audience_view_terms(mat3 nn, mat3 s, vec3 q, PixelMaps m, vec3 scale, vec3 off,
+                         out vec4 g0, out vec4 g1, out vec4 g2, out vec3 b, out vec3 d) {
+    mat3 n_inv = inverse(nn);
+    mat3 p = n_inv * s;
+    mat3 g = p * transpose(mat3(m.w0.xyz, m.w1.xyz, m.w2.xyz));  // G = P Ww; g[j] = column j
+    vec3 a = p * vec3(m.w0.w, m.w1.w, m.w2.w);
+    b = (p[0] + p[1] + p[2]) * scale;
+    d = (n_inv * q) * scale + off;
+    g0 = vec4(g[0].x, g[1].x, g[2].x, a.x) * scale.x;
+    g1 = vec4(g[0].y, g[1].y, g[2].y, a.y) * scale.y;
+    g2 = vec4(g[0].z, g[1].z, g[2].z, a.z) * scale.z;
+}
+
 // Pixel method from the view cache: t2 (unclamped) of the frame's pw.
 vec3 cached_t2(vec4 g0, vec4 g1, vec4 g2, vec3 b, vec3 d, vec3 pw, float alpha, float beta) {
     vec3 gp = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);

@@ -82,7 +82,8 @@ def test_parse_line_accepts(line: str, want: object) -> None:
     [
         "angle", "angle 60 70", "angle sixty", "angle 0", "angle 180", "angle -5", "angle nan",
         "angle inf", "eye 1 2", "eye 1 2 3 4", "eye 0 0 0", "eye 0 0 -1", "eye 0 0 1e9",
-        "eye a b c", "eyes 0 0 1", "turn left", "x" * (MAX_LINE + 1), "angle 6O",
+        "eye a b c", "eyes 0 0", "eyes", "eyes 0 0 1 0 0 -1", "turn left", "x" * (MAX_LINE + 1),
+        "angle 6O",
     ],
 )  # fmt: skip
 def test_parse_line_rejects(line: str) -> None:

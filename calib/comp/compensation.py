@@ -31,12 +31,15 @@ from viewcomp.calib.comp.tonemap import (
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
 from viewcomp.calib.model.reference import (
+    View,
+    audience_solve,
     compensate,
     screen_at,
     tone_terms,
     white_response,
 )
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.world.audience import Audience
 
 if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
@@ -45,6 +48,13 @@ THUMB_SIDE = 64
 #: Video frames between two whole-grid searches of the per-pixel method's tone map.
 FULL_SEARCH_FRAMES = 15
 _CACHE = 64
+
+
+def as_view(eye: View) -> View:
+    """One eye as float64 (3,); an audience of one as its eye; a larger one as it is."""
+    if isinstance(eye, Audience):
+        return eye.eyes[0].copy() if len(eye) == 1 else eye
+    return np.asarray(eye, np.float64)
 
 
 def thumbnail(frame: np.ndarray, max_side: int = THUMB_SIDE) -> np.ndarray:
@@ -126,7 +136,7 @@ class Compensation:
         self._small: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, RuntimeModel]] = {}
         self._paper: OrderedDict[tuple, RuntimeModel] = OrderedDict()
         self._gains: np.ndarray | None = None  # the paper's feedback, carried between frames
-        self._view: tuple[tuple, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._view: tuple | None = None  # the screen at the last eye or audience (_screen)
         self._last_tone: ToneMap | None = None  # the last video frame's, unsmoothed
         self._frames = 0  # video frames since the last full tone-map search
 
@@ -172,7 +182,7 @@ class Compensation:
         self,
         model: RuntimeModel,
         thumb: np.ndarray,
-        eye: np.ndarray,
+        eye: View,
         start: ToneMap | None = None,
     ) -> ToneMap:
         """The tone map for the thumbnail, this model and eye (unsmoothed): the paper's
@@ -185,6 +195,12 @@ class Compensation:
             u = cw @ model.Wc_inv.T.astype(np.float64)
             v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
             return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
+        if isinstance(eye, Audience):
+            mk, ak, p, d = self._audience(small, eye)
+            u = np.einsum("...ij,...j->...i", p, cw)
+            viewers = (mk, ak, eye.weights)
+            return choose_predicted_tone_map(u, p.sum(axis=-1), -d, mk[0], cw, 0.0, 1.0, start,
+                                             viewers)  # fmt: skip
         m, m_inv, a = self._screen(small, eye)
         u, v, c = tone_terms(m_inv, cw, a)
         return choose_predicted_tone_map(u, v, c, m, cw, 0.0, 1.0, start)
@@ -201,9 +217,27 @@ class Compensation:
             self._view = (key, m64, np.linalg.inv(m64), a.astype(np.float64))
         return self._view[1], self._view[2], self._view[3]
 
-    def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> FrameParams:
-        """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye, the time (s)."""
-        eye = np.asarray(eye, np.float64)
+    def _audience(
+        self, small: RuntimeModel, audience: Audience
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """An audience on the thumbnail's pixels (float64): every viewer's M_k (K, h, w, 3,
+        3) and A_k (K, h, w, 3), and the solve's P and d (:func:`audience_solve`), kept for
+        the last (grid, audience) asked for."""
+        key = (small.shape, audience.key)
+        if self._view is None or self._view[0] != key:
+            screens = [screen_at(small, e) for e in audience.eyes]
+            mk = np.stack([m for m, _ in screens]).astype(np.float64)
+            ak = np.stack([a for _, a in screens]).astype(np.float64)
+            p, d = audience_solve(small, audience)
+            self._view = (key, mk, ak, p.astype(np.float64), d.astype(np.float64))
+        return self._view[1], self._view[2], self._view[3], self._view[4]
+
+    def __call__(self, thumb: np.ndarray, eye: View, t: float | None = None) -> FrameParams:
+        """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye (3,) metres or
+        an :class:`Audience` (pixel method), the time (s)."""
+        eye = as_view(eye)
+        if isinstance(eye, Audience) and self.method != "pixel":
+            raise ValueError("an audience of several viewers needs the pixel method")
         gains = None
         if self.method == "pixel":
             model = self._pixel_model
@@ -236,9 +270,10 @@ class Compensation:
         return FrameParams(model, alpha, beta, tone, gains)
 
     def compensate_image(
-        self, image: np.ndarray, eye: np.ndarray, identity: bool = False
+        self, image: np.ndarray, eye: View, identity: bool = False
     ) -> tuple[np.ndarray, FrameParams]:
         """The numpy reference end to end for one image already on the projector grid."""
+        eye = as_view(eye)
         p = self(thumbnail(image), eye)
         out = compensate(p.model, image, eye, p.alpha, p.beta, identity=identity)
         return out, p

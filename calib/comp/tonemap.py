@@ -247,6 +247,7 @@ def choose_predicted_tone_map(
     lo: np.ndarray | float = 0.0,
     hi: np.ndarray | float = 1.0,
     start: ToneMap | None = None,
+    viewers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> ToneMap:
     """(alpha, beta) minimising the *predicted* perceptual error of the compensated image.
 
@@ -267,6 +268,11 @@ def choose_predicted_tone_map(
         lo, hi: the projector light's bounds (0 and 1 for the per-pixel method).
         start: a previous choice (the last video frame's): a local search around it instead
             of the whole grid.
+        viewers: an audience (docs/MODEL.md section 6): (M_k (K, ..., 3, 3), A_k (K, ..., 3),
+            w_k (K,)), the screen at each viewer's eye and the viewers' weights; y then comes
+            from the audience's least squares (u, v, c of its solve), viewer k sees
+            M_k clip(y) + A_k, and the error is the weighted mean over the viewers. ``m`` is
+            unused then.
 
     Returns:
         The ToneMap (``clipped``: the fraction of pixel-channels clipped; ``cost``: the
@@ -282,17 +288,30 @@ def choose_predicted_tone_map(
         return np.broadcast_to(np.asarray(x, np.float64), shape).reshape(-1, 3)[::k]
 
     u, v, c, w = flat(u), flat(v), flat(c), flat(white)
-    m = np.broadcast_to(np.asarray(m, np.float64), (*shape, 3)).reshape(-1, 3, 3)[::k]
     lo_a = np.broadcast_to(np.asarray(lo, np.float64), (3,))
     hi_a = np.broadcast_to(np.asarray(hi, np.float64), (3,))
     goal = _lab(w)
     scale = max(float(w.mean()), 1e-4)
+    if viewers is None:
+        m = np.broadcast_to(np.asarray(m, np.float64), (*shape, 3)).reshape(-1, 3, 3)[::k]
+    else:
+        mk, ak, wk = (np.asarray(x, np.float64) for x in viewers)
+        nk = len(wk)
+        mk = np.broadcast_to(mk, (nk, *shape, 3)).reshape(nk, -1, 3, 3)[:, ::k]
+        ak = np.broadcast_to(ak, (nk, *shape)).reshape(nk, -1, 3)[:, ::k]
+        wk = wk / wk.sum()
 
     def errors(alpha: float, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         y = alpha * u + betas[:, None, None] * v + c
         short = np.clip(y, lo_a, hi_a) - y
-        shown = alpha * w + betas[:, None, None] + np.einsum("nij,knj->kni", m, short)
-        err = np.mean(_delta_e94(_lab(shown), goal), axis=1)
+        if viewers is None:  # M y + A = T exactly: what shows is T + M (clip(y) - y)
+            shown = alpha * w + betas[:, None, None] + np.einsum("nij,knj->kni", m, short)
+            err = np.mean(_delta_e94(_lab(shown), goal), axis=1)
+        else:
+            err = np.zeros(len(betas))
+            for j in range(nk):
+                seen = np.einsum("nij,knj->kni", mk[j], y + short) + ak[j]
+                err += wk[j] * np.mean(_delta_e94(_lab(seen), goal), axis=1)
         return err, np.mean(short != 0.0, axis=(1, 2))
 
     best: ToneMap | None = None

@@ -14,6 +14,10 @@ import numpy as np
 
 from viewcomp.calib.model.lobe import lobe_lookup, lobe_position
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.world.audience import Audience
+
+#: Where the viewer is: one eye (3,) metres, or an :class:`Audience` of several.
+View = np.ndarray | Audience
 
 
 def lut_forward(lut: np.ndarray, levels: np.ndarray) -> np.ndarray:
@@ -141,13 +145,59 @@ def tone_terms(
     return u, v, c
 
 
-def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray) -> np.ndarray:
+def audience_normal(
+    model: RuntimeModel, audience: Audience
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The normal equations of the audience's least squares (pixel method, docs/MODEL.md
+    section 6): the light y minimising sum_k w_k |M_k y + A_k - T|^2 solves N y = S T - q
+    with N = sum_k w_k M_k^T M_k, S = sum_k w_k M_k^T and q = sum_k w_k M_k^T A_k, M_k and
+    A_k the screen at eye k (:func:`screen_at`). Summed in float32 in the viewers' order,
+    as the shader does.
+
+    Returns:
+        N (H, W, 3, 3), S (H, W, 3, 3), q (H, W, 3), float32.
+    """
+    h, w = model.shape
+    n = np.zeros((h, w, 3, 3), np.float32)
+    s = np.zeros((h, w, 3, 3), np.float32)
+    q = np.zeros((h, w, 3), np.float32)
+    for eye, weight in zip(audience.eyes, audience.weights.astype(np.float32), strict=True):
+        m, a = screen_at(model, eye)
+        mt = np.swapaxes(m, -1, -2)
+        n += weight * (mt @ m)
+        s += weight * mt
+        q += weight * np.einsum("hwij,hwj->hwi", mt, a)
+    return n, s, q
+
+
+def audience_solve(model: RuntimeModel, audience: Audience) -> tuple[np.ndarray, np.ndarray]:
+    """The audience's light as a map of the target: y = P T - d with P = N^-1 S and
+    d = N^-1 q (:func:`audience_normal`); one viewer: P = M^-1, d = M^-1 A (the same in
+    exact arithmetic). Returns P (H, W, 3, 3) and d (H, W, 3), float32."""
+    n, s, q = audience_normal(model, audience)
+    n_inv = np.linalg.inv(n)
+    return (n_inv @ s).astype(np.float32), np.einsum("hwij,hwj->hwi", n_inv, q).astype(np.float32)
+
+
+def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: View) -> np.ndarray:
     """Solve for the projector signal that shows ``target`` (H, W, 3) at ``eye``.
+
+    ``eye``: one eye (3,) metres, or an :class:`Audience`: with several viewers (pixel
+    method) the weighted least squares of :func:`audience_normal`; an audience of one is
+    exactly the one eye's solve.
 
     Returns the value fed to the inverse LUT, before clamping to the LUT domain: linear
     projector light Pc for ``pixel`` (valid range 0..1), decoupled luminance C~_c for
     ``paper`` (valid range [inv_lo, inv_hi]).
     """
+    if isinstance(eye, Audience) and len(eye) == 1:
+        eye = eye.eyes[0]
+    if model.method == "pixel" and isinstance(eye, Audience):
+        n, s, q = audience_normal(model, eye)
+        rhs = np.einsum("hwij,hwj->hwi", s, target) - q
+        return np.linalg.solve(n, rhs[..., None])[..., 0].astype(np.float32)
+    if isinstance(eye, Audience):
+        raise ValueError("an audience of several viewers needs the pixel method")
     if model.method == "pixel":
         m, a = screen_at(model, eye)
         return np.linalg.solve(m, (target - a)[..., None])[..., 0].astype(np.float32)
@@ -157,7 +207,7 @@ def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: np.ndarray
 def compensate(
     model: RuntimeModel,
     frame: np.ndarray,
-    eye: np.ndarray,
+    eye: View,
     alpha: float,
     beta: float,
     identity: bool = False,
@@ -167,7 +217,8 @@ def compensate(
     Args:
         model: the runtime model of one method, on an (H, W) projector grid.
         frame: (H, W, 3) uint8, encoded RGB 0..255, already at the projector's resolution.
-        eye: (3,) eye position in metres (world frame of docs/MODEL.md).
+        eye: (3,) eye position in metres (world frame of docs/MODEL.md), or an
+            :class:`Audience` (pixel method; :func:`target_to_projector`).
         alpha, beta: tone map C_c = alpha C_w + beta (Eq. 21), linear camera units.
         identity: pass the frame through unchanged (same quantisation path).
 

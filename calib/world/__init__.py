@@ -1,5 +1,6 @@
 """The physical set-up: rig.toml, eye positions, screen geometry, camera responses.
 
+- ``audience``: An audience: several viewers at once, each an eye position with a weight.
 - ``eye``: Eye positions: a viewing angle is a shorthand for an eye position (docs/MODEL.md
   section 1).
 - ``geometry``: Screen geometry on the projector's pixel grid (docs/MODEL.md section 1), and the

@@ -50,6 +50,7 @@ import numpy as np
 
 from viewcomp.calib.model.reference import lut_forward
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.world.audience import MAX_VIEWERS, Audience
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.context import (
     BufferTexture,
@@ -64,8 +65,9 @@ from viewcomp.shaders import build_program, vec_literal
 
 _METHODS = {"identity": 0, "pixel": 1, "paper": 2}
 _CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
+_AUDIENCE, _BUILD_AUDIENCE = 5, 6  # an audience: solved per draw, its view cache
 _VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
-_PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached"}
+_PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience"}
 _SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe".split()
 MAP_TEXELS = 8  # per pixel in pixel_texels
 
@@ -289,7 +291,9 @@ class Compensator:
             "u_fwd": self._fwd, "u_inv": self._inv,
         }  # fmt: skip
         # Compiled-in constants (#define NAME literal) of every variant of this object.
-        self._consts: dict[str, str | int] = {"GRID_W": w, "GRID_H": h, "N_INV": n_inv}
+        self._consts: dict[str, str | int] = {
+            "GRID_W": w, "GRID_H": h, "N_INV": n_inv, "MAX_VIEWERS": MAX_VIEWERS,
+        }  # fmt: skip
         self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
         self._inv_lo = _f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
         self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
@@ -309,12 +313,13 @@ class Compensator:
             self._Wc_inv = _f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
         self._units = [(i, units.get(name)) for i, name in enumerate(_SAMPLERS)]
         self._view: tuple[Any, Any] | None = None  # (texture, framebuffer), made on first use
-        self._view_eye: tuple[float, ...] | None = None  # the eye the view cache holds
+        self._view_eye: tuple[float, ...] | None = None  # the view the view cache holds
         self._last_eye: tuple[float, ...] | None = None
         self._held = 0  # draws in a row with the same eye, after the first
         self._building: tuple[float, ...] | None = None  # the eye of a cache under way
         self._band_row = 0  # its next grid row
-        self.last_path = ""  # how the last draw ran: identity, solve, cached or paper
+        self.last_path = ""  # how the last draw ran: identity, solve, cached, audience or paper
+        self.audience: Audience | None = None  # several viewers (set_audience), or one eye
         self.identity = False
         self.set_eye(*self._cam_eye)
         self.set_tone(1.0, 0.0)
@@ -342,7 +347,7 @@ class Compensator:
 
     def _program(self, method: int) -> tuple[Any, Any]:
         """(program, vertex array) of shader ``method`` on the current input, compiled once."""
-        inp = 0 if method == _BUILD_VIEW else self._input
+        inp = 0 if method in (_BUILD_VIEW, _BUILD_AUDIENCE) else self._input
         yuv = self._yuv_key if inp == 1 else None
         key = (method, inp, yuv)
         if key not in self._programs:
@@ -373,33 +378,47 @@ class Compensator:
                                  self._n_inv, self.alpha, self.beta)  # fmt: skip
         return out.tobytes()
 
+    def _audience_values(self) -> bytes:
+        """The audience as the shader's u_eyes[MAX_VIEWERS]: (eye.xyz, weight) per viewer."""
+        out = np.zeros((MAX_VIEWERS, 4), np.float32)
+        if self.audience is not None:
+            k = len(self.audience)
+            out[:k, :3] = self.audience.eyes
+            out[:k, 3] = self.audience.weights
+        return out.tobytes()
+
     def _shader_method(self) -> int:
         """The shader METHOD for the next draw; advances the view cache when it is due.
 
         The pixel method runs from the view cache (METHOD 3, ~0.7x the time on llvmpipe)
-        when the eye is the one the cache was built for. The cache is (re)built once the eye
-        has been the same for ``view_hold`` draws in a row (a held viewer, a constant
-        ``--angle``), in ``view_steps`` bands of rows, one band before each draw, so that no
-        single draw takes much longer than the others; until it is complete, and while the
-        eye keeps moving, every draw solves in full (METHOD 1).
+        when the eye (or the audience) is the one the cache was built for: an audience's
+        cache holds its combined solve, so a held audience costs what a held eye does. The
+        cache is (re)built once the view has been the same for ``view_hold`` draws in a row
+        (a held viewer, a constant ``--angle``), in ``view_steps`` bands of rows, one band
+        before each draw, so that no single draw takes much longer than the others; until it
+        is complete, and while the view keeps moving, every draw solves in full (METHOD 1, or
+        5 for an audience).
         """
         if self._identity:
             return 0
         if self.method != "pixel":
             return _METHODS[self.method]
-        eye = tuple(float(v) for v in self.eye)
-        if eye == self._last_eye:
+        aud = self.audience
+        view = tuple(float(v) for v in self.eye) if aud is None else (-1.0, *aud.key)
+        if view == self._last_eye:
             self._held += 1
         else:
-            self._last_eye, self._held = eye, 0
-        if eye == self._view_eye:
+            self._last_eye, self._held = view, 0
+        if view == self._view_eye:
             return _CACHED
-        if self.view_cache and self._held >= self.view_hold and self._build_view_band(eye):
+        build = _BUILD_VIEW if aud is None else _BUILD_AUDIENCE
+        if self.view_cache and self._held >= self.view_hold and self._build_view_band(view, build):
             return _CACHED
-        return _METHODS["pixel"]
+        return _METHODS["pixel"] if aud is None else _AUDIENCE
 
-    def _build_view_band(self, eye: tuple[float, ...]) -> bool:
-        """Render the next band of the view cache for ``eye``; True once it is complete."""
+    def _build_view_band(self, eye: tuple[float, ...], build: int = _BUILD_VIEW) -> bool:
+        """Render the next band of the view cache for the view ``eye`` (an eye, or an
+        audience's key) with shader ``build``; True once it is complete."""
         bx, by = self._view_block(_VIEW_TEXELS)
         size = (bx * self.width, by * self.height)
         row_bytes = 16 * size[0]
@@ -419,7 +438,7 @@ class Compensator:
         fbo.viewport = (0, 0, *size)
         fbo.scissor = band
         fbo.use()
-        self._render(_BUILD_VIEW, flip_y=0)
+        self._render(build, flip_y=0)
         fbo.scissor = None
         # Into the buffer texture the draws read (a copy within the driver, no round trip).
         fbo.read_into(view.buffer, viewport=band, components=4, dtype="f4",
@@ -437,6 +456,10 @@ class Compensator:
             u.write(self._frame_values()[: 16 * max(1, u.array_length)])
         if "u_flip_y" in prog:
             prog["u_flip_y"].value = flip_y
+        if "u_n_eyes" in prog:
+            prog["u_n_eyes"].value = len(self.audience) if self.audience is not None else 0
+        if "u_eyes" in prog:
+            prog["u_eyes"].write(self._audience_values())
         for unit, tex in self._units:
             if tex is not None:
                 tex.use(unit)
@@ -460,11 +483,31 @@ class Compensator:
         self._identity = bool(on)
 
     def set_eye(self, x: float, y: float, z: float) -> None:
-        """Eye position in metres (world frame of docs/MODEL.md)."""
+        """Eye position in metres (world frame of docs/MODEL.md); one viewer from now on."""
         eye = np.array([x, y, z], np.float32)
         if not np.all(np.isfinite(eye)):
             raise ValueError(f"the eye must be three finite numbers, got {(x, y, z)}")
         self.eye = eye
+        self.audience = None
+
+    def set_audience(self, audience: Audience | np.ndarray) -> None:
+        """Several viewers at once (pixel method; docs/MODEL.md section 6): an
+        :class:`~viewcomp.calib.world.audience.Audience`, or eyes (K, 3) of equal weights.
+
+        One viewer is :meth:`set_eye` of that eye: the same program and numbers, so the
+        output is the same bit for bit. ``eye`` becomes the audience's weighted mean eye.
+        """
+        aud = Audience.of(audience)
+        if len(aud) == 1:
+            self.set_eye(*aud.eyes[0])
+            return
+        if self.method != "pixel":
+            raise ValueError(f"an audience of several viewers needs the pixel method, not "
+                             f"{self.method}")  # fmt: skip
+        eye = np.asarray(aud.centre, np.float32)
+        self.eye = eye
+        self.audience = Audience(aud.eyes.astype(np.float32).astype(np.float64),
+                                 aud.weights.astype(np.float32).astype(np.float64))  # fmt: skip
 
     def set_angle(self, deg: float, distance: float, height: float) -> None:
         """Eye from a viewing angle: E = (d cos t, h, d sin t); degrees and metres."""
@@ -602,7 +645,15 @@ class Compensator:
         return sum(1 for o in self._objects if not isinstance(o.mglo, moderngl.InvalidObject))
 
     def release(self) -> None:
-        """Release every GL object (and the context if this object created it). Idempotent."""
+        """Release every GL object (and the context if this object created it). Idempotent.
+
+        If the context's current framebuffer (moderngl's ``ctx.fbo``) is one of this
+        object's, the default framebuffer is bound first: moderngl re-binds its current
+        framebuffer after making a new one, and a deleted name there is a GL error.
+        """
+        current = getattr(self.ctx, "fbo", None) if not self._released else None
+        if current is not None and any(current is o for o in self._objects):
+            (self.ctx.screen or self.ctx.detect_framebuffer(0)).use()
         for obj in reversed(self._objects):  # each release() is idempotent
             obj.release()
         if self._own_ctx and not self._released:

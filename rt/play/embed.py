@@ -57,6 +57,8 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, FrameParams, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+from viewcomp.calib.model.reference import View
+from viewcomp.calib.world.audience import Audience
 from viewcomp.rt.gl.compensator import Compensator
 from viewcomp.rt.gl.context import ProcAddress, default_proc_address, gl_function
 from viewcomp.rt.media.frames import Planes, fit_rect, fit_rgb, thumbnail_planes
@@ -64,6 +66,7 @@ from viewcomp.rt.play.live import (
     EyeCommand,
     EyeState,
     SetAngle,
+    SetAudience,
     SetEye,
     check_angle,
     check_eye,
@@ -298,15 +301,23 @@ def fit_viewport(grid: tuple[int, int], size: tuple[int, int]) -> tuple[int, int
 class FrameRecord:
     """What one rendered frame used: the eye (3,) metres, the FrameParams, the time (s).
 
-    ``tone_eye`` is the eye the FrameParams were computed for (the tone map and, for the
-    paper's method, the model); with ``async_tone`` it can lag ``eye`` by a few frames.
+    ``tone_eye`` is the eye (or audience) the FrameParams were computed for (the tone map
+    and, for the paper's method, the model); with ``async_tone`` it can lag ``eye`` by a few
+    frames. ``audience``: the viewers compensated for when there were several (``eye`` is
+    then their weighted mean), else None.
     """
 
     eye: np.ndarray
     params: FrameParams
     time: float
-    tone_eye: np.ndarray
+    tone_eye: View
     identity: bool
+    audience: Audience | None = None
+
+
+def _copy_view(eye: View) -> View:
+    """An eye as a float64 copy; an audience (immutable) as it is."""
+    return eye if isinstance(eye, Audience) else np.array(eye, np.float64)
 
 
 class ToneWorker:
@@ -325,29 +336,29 @@ class ToneWorker:
         self.busy_seconds = 0.0
         self._lock = threading.Lock()
         self._cond = threading.Condition()
-        self._request: tuple[np.ndarray, np.ndarray, float] | None = None
-        self._result: tuple[FrameParams, np.ndarray] | None = None
+        self._request: tuple[np.ndarray, View, float] | None = None
+        self._result: tuple[FrameParams, View] | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="viewcomp-tone", daemon=True)
         self._thread.start()
 
-    def compute(self, thumb: np.ndarray, eye: np.ndarray, t: float) -> FrameParams:
+    def compute(self, thumb: np.ndarray, eye: View, t: float) -> FrameParams:
         """One synchronous call; also becomes the latest result."""
         start = time.perf_counter()
         with self._lock:
             p = self.comp(thumb, eye, t)
-            self._result = (p, np.array(eye, np.float64))
+            self._result = (p, _copy_view(eye))
             self.calls += 1
             self.busy_seconds += time.perf_counter() - start
         return p
 
-    def submit(self, thumb: np.ndarray, eye: np.ndarray, t: float) -> None:
+    def submit(self, thumb: np.ndarray, eye: View, t: float) -> None:
         """Ask for a call with these inputs (replaces a request not yet started)."""
         with self._cond:
-            self._request = (thumb, np.array(eye, np.float64), t)
+            self._request = (thumb, _copy_view(eye), t)
             self._cond.notify()
 
-    def latest(self) -> tuple[FrameParams, np.ndarray] | None:
+    def latest(self) -> tuple[FrameParams, View] | None:
         """The newest (FrameParams, eye) or None before the first call."""
         return self._result
 
@@ -392,6 +403,8 @@ class LiveRenderer:
         angle: the start viewing angle (degrees) at the rig's viewer distance and height;
             ignored when ``eye`` is given.
         eye: the start eye (x, y, z) metres.
+        audience: several viewers at once from the start (pixel method; docs/MODEL.md
+            section 6); ``angle``/``eye`` then only say where a later single eye starts.
         async_tone: compute the tone map on a worker thread (see the module docstring).
         tone_hz: at most this many tone-map calls a second with ``async_tone``.
         tone_side: longest side (pixels) of the tone map's thumbnail.
@@ -416,6 +429,7 @@ class LiveRenderer:
         eye_tau: float = 0.25,
         angle: float = 90.0,
         eye: tuple[float, float, float] | None = None,
+        audience: Audience | None = None,
         async_tone: bool = True,
         tone_hz: float = 5.0,
         tone_side: int = 32,
@@ -433,6 +447,7 @@ class LiveRenderer:
         self.ctx = ctx
         self.comp = Compensation(cal, method, lam, tau=tone_tau or None)
         self.eye_state = EyeState(v.distance, height, start, eye_tau)
+        self.audience: Audience | None = None  # several viewers, or None: the smoothed eye
         self.tone_side = int(tone_side)
         self.scale = scale
         # One GL loader (the host's; glfw's when a glfw context is current) for the raw calls
@@ -457,6 +472,8 @@ class LiveRenderer:
         self._tex_thumb: tuple[np.ndarray, float] | None = None
         self._released = False
         self.last: FrameRecord | None = None
+        if audience is not None:
+            self.set_audience(audience, smooth=False)
 
     # ------------------------------------------------------------------ the eye
     def set_angle(self, degrees: float, smooth: bool = True) -> None:
@@ -467,17 +484,41 @@ class LiveRenderer:
         """Move to an eye position (metres; z >= 0.05, each within 50 m)."""
         self.apply(SetEye(check_eye((x, y, z))), smooth)
 
+    def set_audience(self, audience: Audience | np.ndarray, smooth: bool = True) -> None:
+        """Compensate for several viewers at once (an
+        :class:`~viewcomp.calib.world.audience.Audience`, or eyes (K, 3) of equal weights;
+        pixel method). One viewer is :meth:`set_eye` of that eye (smoothed like it); an
+        audience takes effect at once (a tracker smooths its faces itself). A later eye or
+        angle command ends it."""
+        aud = Audience.of(audience)
+        if len(aud) == 1:
+            self.audience = None
+            self.set_eye(*aud.eyes[0], smooth=smooth)
+            return
+        if self.comp.method != "pixel":
+            raise ValueError("an audience of several viewers needs the pixel method")
+        self.audience = aud
+
     def apply(self, command: EyeCommand, smooth: bool = True) -> None:
         """Apply a validated eye command from :mod:`viewcomp.rt.play.live` (``SetAngle``,
-        ``SetAngleNorm``, ``SetEye``, ``NudgeAngle``); ``smooth=False`` jumps. The show
-        control (pause, seek, ...) is the host's: a TypeError here."""
+        ``SetAngleNorm``, ``SetEye``, ``NudgeAngle``, ``SetAudience``); ``smooth=False``
+        jumps. The show control (pause, seek, ...) is the host's: a TypeError here."""
+        if isinstance(command, SetAudience):
+            if self.comp.method != "pixel":  # the paper's method: the nearest (first) face
+                command = SetEye(command.eyes[0])
+            else:
+                self.set_audience(np.asarray(command.eyes, np.float64), smooth)
+                return
+        self.audience = None
         self.eye_state.apply(command)
         if not smooth:
             self.eye_state.jump()
 
     @property
     def eye(self) -> np.ndarray:
-        """The current (smoothed) eye (3,) metres."""
+        """The current (smoothed) eye (3,) metres; for an audience its weighted mean eye."""
+        if self.audience is not None:
+            return self.audience.centre
         return self.eye_state.current.copy()
 
     @property
@@ -495,14 +536,12 @@ class LiveRenderer:
             return thumbnail_planes(frame, self.tone_side)
         return thumbnail(frame, self.tone_side)
 
-    def _params(
-        self, thumb: np.ndarray, eye: np.ndarray, now: float
-    ) -> tuple[FrameParams, np.ndarray]:
+    def _params(self, thumb: np.ndarray, eye: View, now: float) -> tuple[FrameParams, View]:
         if self._tone is None:
-            return self.comp(thumb, eye, now), eye.copy()
+            return self.comp(thumb, eye, now), _copy_view(eye)
         latest = self._tone.latest()
         if latest is None:  # the first frame: compute it here, once
-            return self._tone.compute(thumb, eye, now), eye.copy()
+            return self._tone.compute(thumb, eye, now), _copy_view(eye)
         self._tone.submit(thumb, eye, now)
         return latest
 
@@ -526,19 +565,24 @@ class LiveRenderer:
         """Eye, tone map and model for a frame with this thumbnail; uploads ``frame`` (None:
         the input is already in place)."""
         eye = self.eye_state.update(now).copy()
-        params, tone_eye = self._params(thumb, eye, now)
+        aud = self.audience
+        params, tone_eye = self._params(thumb, eye if aud is None else aud, now)
         if params.model is not self._model:
             m = params.model
             if m.method == "paper":
                 self.compensator.update_model(m.Wc_inv, m.inv_lut, m.inv_lo, m.inv_hi)
             self._model = m
-        self.compensator.set_eye(*eye)
+        if aud is None:
+            self.compensator.set_eye(*eye)
+        else:
+            self.compensator.set_audience(aud)
+            eye = aud.centre
         self.compensator.set_tone(params.alpha, params.beta)
         if isinstance(frame, Planes):
             self.compensator.upload_planes(frame)
         elif frame is not None:
             self.compensator.upload(frame)
-        self.last = FrameRecord(eye, params, now, tone_eye, self.identity)
+        self.last = FrameRecord(eye, params, now, tone_eye, self.identity, aud)
         return self.last
 
     def prepare_texture(

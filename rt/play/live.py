@@ -51,6 +51,7 @@ log = logging.getLogger(__name__)
 ANGLE_ADDRESS = "/viewcomp/angle"
 NORM_ADDRESS = "/viewcomp/angle/norm"
 EYE_ADDRESS = "/viewcomp/eye"
+EYES_ADDRESS = "/viewcomp/eyes"  # an audience: 3k floats (viewcomp track --faces all)
 STATUS_ADDRESS = "/viewcomp/status"
 NORM_RANGE = (30.0, 150.0)  # degrees that /viewcomp/angle/norm 0 and 1 map to by default
 # The limits of an angle and an eye position are viewcomp.calib.world.eye's; relative moves
@@ -94,7 +95,15 @@ class SetAngleNorm:
     value: float
 
 
-EyeCommand = SetAngle | SetEye | NudgeAngle | SetAngleNorm
+@dataclass(frozen=True)
+class SetAudience:
+    """Compensate for every eye in ``eyes`` ((x, y, z) metres each, equal weights) at once
+    (docs/MODEL.md section 6); one eye is :class:`SetEye` of it."""
+
+    eyes: tuple[tuple[float, float, float], ...]
+
+
+EyeCommand = SetAngle | SetEye | NudgeAngle | SetAngleNorm | SetAudience
 
 
 @dataclass(frozen=True)
@@ -189,6 +198,20 @@ def check_eye(values: Sequence[Any]) -> tuple[float, float, float]:
     return float(x), float(y), float(z)
 
 
+def check_eyes(values: Sequence[Any]) -> SetAudience | SetEye:
+    """Eye positions x1 y1 z1 x2 y2 z2 ... (1 to MAX_VIEWERS of them, each as
+    :func:`check_eye`): a :class:`SetAudience`, or a :class:`SetEye` for one; else
+    InputError."""
+    from viewcomp.calib.world.audience import MAX_VIEWERS
+
+    if not values or len(values) % 3 or len(values) > 3 * MAX_VIEWERS:
+        raise InputError(
+            f"eyes are 1 to {MAX_VIEWERS} positions x y z (metres), 3k numbers; got {len(values)}"
+        )
+    eyes = tuple(check_eye(values[i : i + 3]) for i in range(0, len(values), 3))
+    return SetEye(eyes[0]) if len(eyes) == 1 else SetAudience(eyes)
+
+
 def check_norm(value: Any) -> float:
     """A normalised angle in [0, 1]; else InputError."""
     v = _number(value, "a normalised angle")
@@ -239,8 +262,8 @@ def _show_command(key: str, args: Sequence[Any], name: str) -> ShowCommand:
 
 
 _WORDS = {k for k, _ in SHOW_ADDRESSES.values()}
-_EXPECTED_LINE = ("`angle DEG`, `norm 0..1`, `eye X Y Z`, `pause`, `resume`, `seek S`, `next`, "
-                  "`previous`, `blackout 0|1` or `status`")  # fmt: skip
+_EXPECTED_LINE = ("`angle DEG`, `norm 0..1`, `eye X Y Z`, `eyes X1 Y1 Z1 ...`, `pause`, "
+                  "`resume`, `seek S`, `next`, `previous`, `blackout 0|1` or `status`")  # fmt: skip
 
 
 # ----------------------------------------------------------------------- parsers
@@ -252,6 +275,7 @@ def parse_line(line: str) -> Command | None:
         angle DEG
         norm V            (0..1 onto the configured angle range)
         eye X Y Z
+        eyes X1 Y1 Z1 X2 Y2 Z2 ...   (an audience; viewcomp track --faces all)
         pause | resume | next | previous | status
         seek SECONDS
         blackout 0|1
@@ -266,7 +290,7 @@ def parse_line(line: str) -> Command | None:
         return None
     words = text.replace(",", " ").split()
     key, args = words[0].lower(), words[1:]
-    if key not in _WORDS | {"angle", "norm", "eye"}:
+    if key not in _WORDS | {"angle", "norm", "eye", "eyes"}:
         raise InputError(f"unknown command {words[0]!r:.30}; expected {_EXPECTED_LINE}")
     try:
         nums = [float(a) for a in args]
@@ -282,6 +306,8 @@ def parse_line(line: str) -> Command | None:
         return SetAngleNorm(check_norm(nums[0]))
     if key == "eye":
         return SetEye(check_eye(nums))
+    if key == "eyes":
+        return check_eyes(nums)
     return _show_command(key, nums, f"`{key}`")
 
 
@@ -291,8 +317,9 @@ def parse_osc_message(
     """An OSC message (address, arguments) -> a command.
 
     ``/viewcomp/angle`` takes one number (int, float or double), ``/viewcomp/angle/norm``
-    one in [0, 1], ``/viewcomp/eye`` three; ``/viewcomp/seek`` one (seconds),
-    ``/viewcomp/blackout`` one (0 or 1), the other show-control addresses none.
+    one in [0, 1], ``/viewcomp/eye`` three, ``/viewcomp/eyes`` 3k (an audience);
+    ``/viewcomp/seek`` one (seconds), ``/viewcomp/blackout`` one (0 or 1), the other
+    show-control addresses none.
     ``/viewcomp/status`` is answered to ``sender`` (the datagram's source address).
 
     Raises:
@@ -308,6 +335,8 @@ def parse_osc_message(
         return SetAngleNorm(check_norm(args[0]))
     if address == EYE_ADDRESS:
         return SetEye(check_eye(args))
+    if address == EYES_ADDRESS:
+        return check_eyes(args)
     if address in SHOW_ADDRESSES:
         key = SHOW_ADDRESSES[address][0]
         if key == "status":
@@ -315,7 +344,7 @@ def parse_osc_message(
                 raise InputError(f"{address} takes no arguments, got {len(args)}")
             return Status(sender)
         return _show_command(key, list(args), address)
-    known = ", ".join([ANGLE_ADDRESS, NORM_ADDRESS, EYE_ADDRESS, *SHOW_ADDRESSES])
+    known = ", ".join([ANGLE_ADDRESS, NORM_ADDRESS, EYE_ADDRESS, EYES_ADDRESS, *SHOW_ADDRESSES])
     raise InputError(f"unknown OSC address {address!r:.60}; expected one of {known}")
 
 

@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+from viewcomp.calib.world.audience import Audience
 from viewcomp.rt.gl.context import core_profile_hints, libegl
 from viewcomp.rt.media.audio import AudioPlayer, AudioStats, open_alsa
 from viewcomp.rt.media.frames import Planes
@@ -218,6 +219,7 @@ class PlayerOptions:
     osc_feedback: tuple[str, int] | None = None
     feedback_every: float = 1.0
     inputs: tuple[Any, ...] = ()  # more eye sources: start(hub) -> an object with stop()
+    audience: Audience | None = None  # several viewers at once from the start (pixel method)
 
 
 @dataclass
@@ -614,7 +616,8 @@ class Player:
         self._ctx = moderngl.create_context(require=330)
         self.renderer = LiveRenderer(
             self.cal, self._ctx, method=o.method, lam=o.lam, tone_tau=o.tone_tau,
-            eye_tau=o.eye_tau, angle=o.angle, eye=o.eye, async_tone=True, tone_hz=o.tone_hz,
+            eye_tau=o.eye_tau, angle=o.angle, eye=o.eye, audience=o.audience, async_tone=True,
+            tone_hz=o.tone_hz,
             tone_side=o.tone_side, scale=o.scale,  # type: ignore[arg-type]
             proc_address=lambda name: int(glfw.get_proc_address(name) or 0),
         )  # fmt: skip

@@ -17,7 +17,9 @@ Interfaces:
   it with ``tau`` for video). For ``paper`` the model changes with the eye; the GL backend
   re-uploads its ``Wc_inv``/``inv_lut``/``inv_lo``/``inv_hi`` only when ``p.model is not``
   the previous one (Compensation caches models). Grid and method stay fixed per file.
-- ``eye_track``: callable ``t_seconds -> eye (3,)`` metres; see :mod:`viewcomp.rt.render.tracks`.
+- ``eye_track``: callable ``t_seconds -> eye (3,)`` metres, or an
+  :class:`~viewcomp.calib.world.audience.Audience` of several viewers (pixel method); see
+  :mod:`viewcomp.rt.render.tracks`.
   Images use t = 0 for the eye and no time for ``comp`` (no smoothing).
 - Thumbnails: images use ``viewcomp.calib.comp.compensation.thumbnail`` (area average); video
   frames :func:`viewcomp.rt.media.frames.thumbnail_planes` at the same size (nearest on the
@@ -45,8 +47,9 @@ from tqdm import tqdm
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
 from viewcomp.calib.errors import ViewcompError, describe_os_error
 from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
-from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.world.audience import Audience
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
 from viewcomp.rt.media.video import (
     DEFAULT_PRESET,
@@ -136,7 +139,7 @@ class _Engine:
         self.next_model = model  # what the next submit uses
         self.ctx = ctx
         self.alpha, self.beta = 1.0, 0.0
-        self.eye = np.asarray(model.cam_eye, np.float32)
+        self.eye: View = np.asarray(model.cam_eye, np.float32)
         self.gl: Any = None
         self._result: np.ndarray | None = None
         if backend == "gl":
@@ -151,8 +154,8 @@ class _Engine:
         self.gl = Compensator(model, self.ctx)
         self.gl.identity = self.identity
 
-    def set_params(self, p: FrameParamsLike | None, eye: np.ndarray) -> None:
-        """The next frame's model, tone map (None: keep) and eye."""
+    def set_params(self, p: FrameParamsLike | None, eye: View) -> None:
+        """The next frame's model, tone map (None: keep) and eye (or audience)."""
         if p is not None:
             model = p.model
             if model is not self.next_model and (
@@ -164,7 +167,7 @@ class _Engine:
                 )
             self.next_model = model
             self.alpha, self.beta = float(p.alpha), float(p.beta)
-        self.eye = np.asarray(eye, np.float32)
+        self.eye = _view(eye)
 
     def submit(self, frame: np.ndarray | Planes) -> None:
         """Start compensating one frame (RGB or yuv420p planes, on the grid)."""
@@ -180,7 +183,10 @@ class _Engine:
             else:  # a new per-pixel model: new maps, new compensator (not expected)
                 self._make_gl(model)
             self.model = model
-        self.gl.set_eye(*self.eye)
+        if isinstance(self.eye, Audience):
+            self.gl.set_audience(self.eye)
+        else:
+            self.gl.set_eye(*self.eye)
         self.gl.set_tone(self.alpha, self.beta)
         if isinstance(frame, Planes):
             self.gl.upload_planes(frame)
@@ -209,6 +215,14 @@ class _Engine:
         if self.gl is not None:
             self.gl.release()
             self.gl = None
+
+
+def _view(eye: View) -> View:
+    """A track's value for both backends: one eye as float32 (3,) (an audience of one too),
+    a larger audience as it is."""
+    if isinstance(eye, Audience):
+        return eye if len(eye) > 1 else np.asarray(eye.eyes[0], np.float32)
+    return np.asarray(eye, np.float32)
 
 
 def _check_comp(comp: CompensationLike) -> RuntimeModel:
@@ -275,7 +289,7 @@ def render_file(
         if dst.suffix.lower() != ".png":
             raise ImageError(f"image output must be a .png file, got {dst}")
         frame = _read_image(src, model.shape)
-        eye0 = np.asarray(eye_track(0.0), np.float32)
+        eye0 = _view(eye_track(0.0))
         t_params = 0.0
         eng = _Engine(backend, model, identity, ctx)
         try:
@@ -374,7 +388,7 @@ def _video_loop(
             else:
                 audio.append(item)
             continue
-        eye = np.asarray(eye_track(item.time), np.float32)
+        eye = _view(eye_track(item.time))
         params = None
         if not identity:  # overlaps the previous frame's rendering
             t = time.perf_counter()

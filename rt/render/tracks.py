@@ -1,7 +1,9 @@
 """Eye tracks: where the viewer is at time t, as a callable ``t_seconds -> eye (3,)``.
 
 A track is any callable returning the eye position (3,) float32 in metres (world frame of
-docs/MODEL.md) for a presentation time in seconds. Angles use E = (d cos t, h, d sin t).
+docs/MODEL.md) for a presentation time in seconds, or an
+:class:`~viewcomp.calib.world.audience.Audience` of several viewers. Angles use
+E = (d cos t, h, d sin t).
 """
 
 from __future__ import annotations
@@ -15,9 +17,10 @@ import numpy as np
 
 from viewcomp.calib.errors import ViewcompError
 from viewcomp.calib.io.paths import check_input_file
+from viewcomp.calib.world.audience import Audience
 from viewcomp.calib.world.eye import EyeError, check_angle, check_track, eye_from_angle
 
-EyeTrack = Callable[[float], np.ndarray]
+EyeTrack = Callable[[float], "np.ndarray | Audience"]
 
 
 class TrackError(ViewcompError, ValueError):
@@ -28,6 +31,11 @@ def constant_eye(x: float, y: float, z: float) -> EyeTrack:
     """A track that stays at eye (x, y, z) metres."""
     eye = np.array([x, y, z], np.float32)
     return lambda t: eye
+
+
+def constant_audience(audience: Audience) -> EyeTrack:
+    """A track that stays with one audience (several viewers, docs/MODEL.md section 6)."""
+    return lambda t: audience
 
 
 def constant_angle(deg: float, distance: float, height: float) -> EyeTrack:

@@ -20,8 +20,7 @@ from typing import Protocol, TextIO
 
 import numpy as np
 
-EYES_ADDRESS = "/viewcomp/eyes"
-EYE_ADDRESS = "/viewcomp/eye"  # the same address viewcomp.rt.play.live reads
+from viewcomp.rt.play.live import EYE_ADDRESS, EYES_ADDRESS  # the addresses the player reads
 
 
 def format_eyes(eyes: np.ndarray, all_faces: bool) -> str:
@@ -99,21 +98,24 @@ class OscPublisher:
 
 class HubPublisher:
     """Commands into a player's :class:`viewcomp.rt.play.live.InputHub` (source ``track``):
-    the nearest eye as a ``SetEye``, validated as a stdin line would be."""
+    the nearest eye as a ``SetEye`` or, with ``all_faces``, every face as a ``SetAudience``
+    (one face: a ``SetEye``), validated as a stdin line would be."""
 
     source = "track"
 
-    def __init__(self, hub: object) -> None:
+    def __init__(self, hub: object, all_faces: bool = False) -> None:
         self.hub = hub
+        self.all_faces = all_faces
         self._last = ""
         self._lock = threading.Lock()
         self.sent = 0
 
     def publish(self, eyes: np.ndarray) -> bool:
-        """Queue the first eye of ``eyes`` (K, 3) if it changed; True if queued."""
+        """Queue the first eye of ``eyes`` (K, 3) (all of them with ``all_faces``) if it
+        changed; True if queued."""
         from viewcomp.rt.play.live import InputError, parse_line
 
-        line = format_eyes(eyes, all_faces=False)
+        line = format_eyes(eyes, self.all_faces)
         with self._lock:
             if line == self._last:
                 return False

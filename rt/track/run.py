@@ -256,8 +256,9 @@ class TrackerThread:
     thread; the player goes on with the last eye.
     """
 
-    def __init__(self, pipeline: Pipeline) -> None:
+    def __init__(self, pipeline: Pipeline, all_faces: bool = False) -> None:
         self.pipeline = pipeline
+        self.all_faces = all_faces  # publish every face (an audience), not only the nearest
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="viewcomp-track", daemon=True)
         self.error: BaseException | None = None
@@ -266,7 +267,7 @@ class TrackerThread:
         """Publish into ``hub`` (an InputHub) and start."""
         from viewcomp.rt.track.publish import HubPublisher
 
-        self.pipeline.publishers.append(HubPublisher(hub))
+        self.pipeline.publishers.append(HubPublisher(hub, self.all_faces))
         self._thread.start()
         return self
 

@@ -121,9 +121,12 @@ def add_eye_arguments(
     angle_default: float | None = None,
     angle_note: str = "",
     track: bool = False,
+    audience: bool = False,
 ) -> None:
     """Where the viewer is: ``--angle DEG`` or ``--eye X,Y,Z`` (and ``--track CSV`` with
-    ``track``), mutually exclusive. ``args.eye`` stays text: parse it with :func:`parse_vec3`.
+    ``track``, ``--audience SPEC`` with ``audience``), mutually exclusive. ``args.eye`` and
+    ``args.audience`` stay text: parse them with :func:`parse_vec3` and
+    :func:`viewcomp.calib.world.audience.parse_audience`.
     """
     where = p.add_mutually_exclusive_group(required=required)
     default = f"; default {angle_default:g}" if angle_default is not None else ""
@@ -143,6 +146,15 @@ def add_eye_arguments(
     if track:
         where.add_argument(
             "--track", metavar="CSV", help="CSV of (seconds, degrees) rows: the angle over time"
+        )
+    if audience:
+        where.add_argument(
+            "--audience",
+            metavar="SPEC",
+            help="several viewers at once (pixel method): a zone A:B[:N] of N viewers spread "
+            "over A..B degrees (N default 7), or angles / X,Y,Z eyes separated by ';', each "
+            'optionally weighted with @W, e.g. 60:120, "60;90;120", "0.2,0.03,0.5;-0.2,0.03,0.5"; '
+            "the light per pixel is the least-squares best for all of them",
         )
 
 

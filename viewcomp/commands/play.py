@@ -22,13 +22,15 @@ live angle input and show control:
             O: overlay (angle, eye, fps, drops), C: compensation on/off, Esc/Q: quit
   mouse     drag with the left button: the window's width is 180 degrees
   OSC/UDP   to --osc HOST:PORT: /viewcomp/angle f (degrees), /viewcomp/angle/norm f (0..1
-            onto --norm-angle-range), /viewcomp/eye f f f (metres), /viewcomp/pause,
-            /viewcomp/resume, /viewcomp/seek f (seconds), /viewcomp/next, /viewcomp/previous,
+            onto --norm-angle-range), /viewcomp/eye f f f (metres), /viewcomp/eyes f f f ...
+            (an audience), /viewcomp/pause, /viewcomp/resume, /viewcomp/seek f (seconds),
+            /viewcomp/next, /viewcomp/previous,
             /viewcomp/blackout i (1 black, 0 picture), /viewcomp/status (answered to the
             sender: file, position s, paused, angle, eye x y z, fps, dropped, blackout)
-  stdin     lines `angle 60`, `norm 0.5`, `eye 0.1 0.0 0.5`, `pause`, `resume`,
-            `seek 12.5`, `next`, `previous`, `blackout 1`, `status` (printed to stdout)
-  camera    --track-camera SRC: the nearest face's eye (defaults of `viewcomp track`)
+  stdin     lines `angle 60`, `norm 0.5`, `eye 0.1 0.0 0.5`, `eyes X1 Y1 Z1 X2 ...`,
+            `pause`, `resume`, `seek 12.5`, `next`, `previous`, `blackout 1`, `status`
+            (printed to stdout)
+  camera    --track-camera SRC: every face's eye, an audience (--track-faces nearest: one)
 Moves are smoothed (--eye-smooth); malformed messages are logged and dropped.
 """
 
@@ -45,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("calib", nargs="?", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("videos", nargs="*", metavar="VIDEO", help="video files or folders")
-    add_eye_arguments(p, angle_default=90.0, angle_note="; where playback starts")
+    add_eye_arguments(p, angle_default=90.0, angle_note="; where playback starts",
+                      audience=True)  # fmt: skip
     p.add_argument("--monitor", type=int, default=0, help="monitor index (see --list-monitors)")
     p.add_argument("--list-monitors", action="store_true", help="list the monitors and exit")
     p.add_argument("--windowed", action="store_true", help="a window instead of fullscreen")
@@ -56,7 +59,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
     p.add_argument("--no-stdin", action="store_true", help="do not read commands from stdin")
     p.add_argument("--track-camera", metavar="SRC",
-                   help="follow the nearest face in camera SRC (see `viewcomp track`)")  # fmt: skip
+                   help="follow the faces in camera SRC (see `viewcomp track`)")  # fmt: skip
+    p.add_argument("--track-faces", choices=["all", "nearest"], default="all",
+                   help="with --track-camera: compensate for every face seen at once (all, "
+                        "the default; pixel method) or for the nearest one")  # fmt: skip
     add_tone_arguments(p)
     p.add_argument("--eye-smooth", type=float, default=0.25,
                    help="eye smoothing time constant, s (default 0.25; 0: instant)")  # fmt: skip
@@ -102,13 +108,14 @@ def _stdin_fd() -> int | None:
         return None
 
 
-def _tracker(src: str | None, rig: object) -> tuple[object, ...]:
+def _tracker(src: str | None, rig: object, all_faces: bool) -> tuple[object, ...]:
     """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early)."""
     if not src:
         return ()
     from viewcomp.rt.track.run import TrackerThread, build, default_options
 
-    return (TrackerThread(build(src, rig, default_options(rig))),)  # type: ignore[arg-type]
+    pipeline = build(src, rig, default_options(rig))  # type: ignore[arg-type]
+    return (TrackerThread(pipeline, all_faces),)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -152,6 +159,14 @@ def run(args: argparse.Namespace) -> int:
         from viewcomp.calib.fit.calibrate import Calibration
 
         cal = Calibration.load(args.calib)
+        audience = None
+        if args.audience is not None:
+            from viewcomp.calib.world.audience import parse_audience
+
+            v = cal.rig.viewer
+            audience = parse_audience(args.audience, v.distance, v.height or 0.0)
+            if len(audience) > 1 and args.method != "pixel":
+                raise UsageError("--audience with several viewers needs --method pixel")
         options = PlayerOptions(
             method=args.method,
             lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
@@ -176,7 +191,10 @@ def run(args: argparse.Namespace) -> int:
             norm_range=norm_range,
             osc_feedback=feedback,
             feedback_every=args.feedback_every,
-            inputs=_tracker(args.track_camera, cal.rig),
+            audience=audience,
+            inputs=_tracker(
+                args.track_camera, cal.rig, args.track_faces == "all" and args.method == "pixel"
+            ),
         )
         stats = Player(cal, args.videos, options).run()
     except PlayerError as exc:

@@ -24,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "-o", "--output", required=True, help=".png for an image; .mp4/.mkv/.mov for video"
     )
-    add_eye_arguments(p, required=True, track=True)
+    add_eye_arguments(p, required=True, track=True, audience=True)
     add_tone_arguments(p)
     p.add_argument("--backend", choices=["gl", "cpu"], default="gl",
                    help="gl: the GLSL shader (default); cpu: the numpy reference")  # fmt: skip
@@ -41,15 +41,21 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
     from viewcomp.calib.fit.calibrate import Calibration
+    from viewcomp.calib.world.audience import parse_audience
     from viewcomp.cli import UsageError
     from viewcomp.rt.render.pipeline import is_image, render_file
-    from viewcomp.rt.render.tracks import constant_eye, load_angle_track
+    from viewcomp.rt.render.tracks import constant_audience, constant_eye, load_angle_track
 
     _check_args(args)
     cal = Calibration.load(args.calib)
     v = cal.rig.viewer
     if args.track is not None:
         track = load_angle_track(args.track, v.distance, v.height)
+    elif args.audience is not None:
+        audience = parse_audience(args.audience, v.distance, v.height)
+        if len(audience) > 1 and args.method != "pixel":
+            raise UsageError("--audience with several viewers needs --method pixel")
+        track = constant_audience(audience)
     else:
         eye = cal.eye(args.angle, parse_vec3(args.eye) if args.eye else None)
         track = constant_eye(*eye)
@@ -97,4 +103,8 @@ def _check_args(args: argparse.Namespace) -> None:
         check_angle(args.angle, "--angle")
     if args.eye:
         check_eye(parse_vec3(args.eye), f"--eye {args.eye}")
+    if args.audience is not None:  # the grammar before any work (angles use the rig's viewer)
+        from viewcomp.calib.world.audience import parse_audience
+
+        parse_audience(args.audience, 1.0, 0.0)
     check_output_file(args.output, args.calib, args.input, args.track)
