@@ -286,3 +286,104 @@ def test_held_audience_draws_from_the_view_cache(gl_ctx, model):
         assert comp.last_path == "cached"
         cached = {k for k in comp._programs if k[0] == _CACHED}
         assert len(cached) == 1 and cached <= programs
+
+
+# ----------------------------------------------------------------------- the commands
+@pytest.fixture(scope="module")
+def bundle(tmp_path_factory):
+    from viewcomp.cli import main
+
+    d = tmp_path_factory.mktemp("audience")
+    assert main(["simulate", str(d / "caps"), "--size", "64x32", "--screen", "magenta"]) == 0
+    assert main(["calibrate", str(d / "caps"), "-o", str(d / "m.vcb")]) == 0
+    return d / "m.vcb"
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("backend", ["gl", "cpu"])
+def test_render_one_viewer_audience_equals_the_angle(bundle, tmp_path, backend):
+    """`render --audience 75` writes the very image `render --angle 75` does; a zone writes
+    another."""
+    from viewcomp.calib.io.imageio import read_image, write_png
+    from viewcomp.cli import main
+
+    src = tmp_path / "in.png"
+    write_png(src, smooth_frame(64, 32, seed=4))
+    outs = {}
+    for name, where in (("angle", ["--angle", "75"]), ("one", ["--audience", "75"]),
+                        ("zone", ["--audience", "60:120"])):  # fmt: skip
+        out = tmp_path / f"{name}.png"
+        assert main(["render", str(bundle), str(src), "-o", str(out), "--backend", backend,
+                     "--quiet", *where]) == 0  # fmt: skip
+        outs[name] = read_image(out)
+    assert np.array_equal(outs["angle"], outs["one"])
+    assert not np.array_equal(outs["angle"], outs["zone"])
+
+
+def test_render_refuses_a_bad_audience_before_work(bundle, tmp_path, capsys):
+    from viewcomp.calib.io.imageio import write_png
+    from viewcomp.cli import main
+
+    src = tmp_path / "in.png"
+    write_png(src, smooth_frame(64, 32, seed=4))
+    out = tmp_path / "out.png"
+    code = main(["render", str(bundle), str(src), "-o", str(out), "--audience", "60,90,120"])
+    assert code == 2 and not out.exists()
+    assert "separate them with ';'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # a usage error: argparse's exit
+        main(["render", str(bundle), str(src), "-o", str(out), "--audience", "60:120",
+              "--method", "paper"])  # fmt: skip
+    assert exc.value.code == 2 and "--method pixel" in capsys.readouterr().err
+
+
+def test_eyes_lines_and_osc_make_an_audience():
+    from viewcomp.rt.play.live import (
+        EYES_ADDRESS,
+        SetAudience,
+        SetEye,
+        parse_line,
+        parse_osc_message,
+    )
+
+    cmd = parse_line("eyes 0.1 0.03 0.5 -0.2 0.03 0.8")
+    assert cmd == SetAudience(((0.1, 0.03, 0.5), (-0.2, 0.03, 0.8)))
+    assert parse_line("eyes 0.1 0.03 0.5") == SetEye((0.1, 0.03, 0.5))
+    assert parse_osc_message(EYES_ADDRESS, [0.1, 0.0, 0.5, 0.2, 0.0, 0.5]) == SetAudience(
+        ((0.1, 0.0, 0.5), (0.2, 0.0, 0.5))
+    )
+
+
+def test_hub_publisher_sends_every_face():
+    from viewcomp.rt.play.live import InputHub, SetAudience
+    from viewcomp.rt.track.publish import HubPublisher
+
+    hub = InputHub()
+    eyes = np.array([[0.1, 0.03, 1.0], [-0.3, 0.03, 2.0]])
+    assert HubPublisher(hub, all_faces=True).publish(eyes)
+    assert HubPublisher(hub).publish(eyes)
+    got = [r.command for r in hub.drain()]
+    assert isinstance(got[0], SetAudience) and len(got[0].eyes) == 2
+    assert got[1].eye == (0.1, 0.03, 1.0)
+
+
+@pytest.mark.gl
+def test_live_renderer_follows_an_audience(gl_ctx):
+    """LiveRenderer: an audience from the start and from SetAudience draws what the
+    Compensator draws for it; an eye command ends it."""
+    from viewcomp.calib.sim.testing import small_calibration
+    from viewcomp.rt.play.embed import LiveRenderer
+    from viewcomp.rt.play.live import SetAngle, SetAudience
+
+    cal = small_calibration(64, 32, screen="magenta")
+    frame = smooth_frame(64, 32, seed=3)
+    aud = zone(60, 120, 5, cal.rig.viewer.distance, cal.rig.viewer.height)
+    with LiveRenderer(cal, gl_ctx, audience=aud, async_tone=False, tone_tau=None) as live:
+        live.prepare(frame)
+        assert live.last.audience is aud and live.compensator.audience is not None
+        np.testing.assert_allclose(live.eye, aud.centre)
+        live.apply(SetAudience(tuple(tuple(e) for e in aud.eyes[:2])))
+        live.prepare(frame)
+        assert len(live.last.audience) == 2
+        live.apply(SetAngle(70.0), smooth=False)
+        live.prepare(frame)
+        assert live.last.audience is None and live.compensator.audience is None
