@@ -315,3 +315,59 @@ def write_materials_report(out: Path, report: dict[str, Any]) -> None:
            f"Run time: {report['seconds']} s.", ""]  # fmt: skip
     write_text_atomic(out / "report.json", dumps(report))
     write_text_atomic(out / "report.md", "\n".join(md))
+
+
+def write_audience_report(out: Path, report: dict[str, Any]) -> None:
+    """report.json and report.md of the audience protocol into ``out``."""
+    from viewcomp.calib.eval.evaluate import dumps
+
+    cfg = report["config"]
+    md = [
+        "# viewcomp evaluation: several viewers at once, and a tracked viewer",
+        "",
+        f"Projector {cfg['projector'][0]}x{cfg['projector'][1]}, seed {cfg['seed']}, "
+        f"{cfg['capture_space']} space, viewers at {cfg['viewer']['distance']} m. Each zone's "
+        f"audience compensation uses {cfg['audience_viewers']} viewers spread over it; every "
+        f"column is judged at {cfg['judged_at']} angles evenly over the zone (mean CIEDE2000 "
+        "against the white screen seen from the same eye). Mean over the sweep's glossy "
+        "screens and natural images of each row's zone mean and zone worst:",
+        "",
+        "| zone | | pixel_90 | pixel_centre | pixel_audience | oracle (per viewer) |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
+    for name, z in report["zone_summary"].items():
+        for what in ("mean", "worst"):
+            m = z[what]
+            md.append(
+                f"| {name} | {what} | {m['pixel_90']:.2f} | {m['pixel_centre']:.2f} | "
+                f"{m['pixel_audience']:.2f} | {m['oracle']:.2f} |"
+            )
+    md += ["", "Criteria (rows where they hold, of all rows; and on the means):", "", "```",
+           json.dumps({k: {c: v for c, v in z.items() if c not in ("mean", "worst")}
+                       for k, z in report["zone_summary"].items()}, indent=1),
+           "```", ""]  # fmt: skip
+    walk = report.get("walk")
+    if walk:
+        s = walk["summary"]
+        md += [
+            f"Tracked walk ({s['screen']} screen, {s['image']}, {s['frames_judged']} frames "
+            f"judged, the tracked eye {s['delay_frames']} frames late, the walk scaled by "
+            f"{walk['scale']:.3f}): mean dE tracked {s['mean']['tracked']:.2f}, exact eye "
+            f"{s['mean']['exact']:.2f}, 90 degrees {s['mean']['pixel_90']:.2f}; 95th "
+            f"percentile {s['p95']['tracked']:.2f} / {s['p95']['exact']:.2f} / "
+            f"{s['p95']['pixel_90']:.2f}. Over time (t s, true angle, tracked angle, dE tracked "
+            "/ exact / 90):",
+            "",
+            "| t | angle | tracked | tracked | exact | 90 |",
+            "|---:|---:|---:|---:|---:|---:|",
+        ]
+        for r in walk["rows"]:
+            d = r["de"]
+            md.append(
+                f"| {r['t']:.1f} | {r['angle']:.1f} | {r['tracked_angle']:.1f} | "
+                f"{d['tracked']:.2f} | {d['exact']:.2f} | {d['pixel_90']:.2f} |"
+            )
+        md.append("")
+    md += [f"Run time: {report['seconds']} s.", ""]
+    write_text_atomic(out / "report.json", dumps(report))
+    write_text_atomic(out / "report.md", "\n".join(md))

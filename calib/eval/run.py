@@ -7,6 +7,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from viewcomp.calib.eval.evaluate import (
     SWEEP_ANGLES,
     SWEEP_SCREENS,
@@ -21,9 +23,15 @@ from viewcomp.calib.eval.evaluate import (
 )
 from viewcomp.calib.eval.materials import MATERIAL_SIZE
 from viewcomp.calib.eval.materials import materials as materials_protocol
-from viewcomp.calib.eval.report import write_materials_report, write_report
+from viewcomp.calib.eval.report import (
+    write_audience_report,
+    write_materials_report,
+    write_report,
+)
 
-PROTOCOLS = ("table2", "sweep", "all", "materials")
+PROTOCOLS = ("table2", "sweep", "all", "materials", "audience")
+#: A tracked walk: times (n,) s, true eyes (n, 3) and tracked eyes (n, 3), metres.
+Walk = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def _run_materials(
@@ -56,6 +64,53 @@ def _run_materials(
     return report
 
 
+def _run_audience(
+    out_dir: str | Path,
+    seed: int,
+    size: tuple[int, int] | None,
+    screens: Iterable[str],
+    walk: Walk | None,
+    progress: Progress | None,
+    space: str,
+) -> dict[str, Any]:
+    from viewcomp.calib.eval.audience import (
+        JUDGE_VIEWERS,
+        ZONES,
+        walk_rows,
+        zone_rows,
+        zone_summary,
+    )
+    from viewcomp.calib.world.audience import ZONE_VIEWERS
+
+    t0 = time.perf_counter()
+    world = World.make(seed=seed, size=size, space=space)
+    report: dict[str, Any] = {
+        "config": {
+            "protocol": "audience",
+            "seed": seed,
+            "capture_space": space,
+            "projector": list(world.sim.rig.projector.resolution),
+            "zones": [list(z) for z in ZONES],
+            "audience_viewers": ZONE_VIEWERS,
+            "judged_at": JUDGE_VIEWERS,
+            "viewer": {
+                "distance": world.sim.rig.viewer.distance,
+                "height": world.sim.rig.viewer.height,
+            },
+        }
+    }
+    rows = zone_rows(world, screens=screens, progress=progress)
+    report["zone_rows"] = rows
+    report["zone_summary"] = zone_summary(rows)
+    if walk is not None:
+        report["walk"] = walk_rows(world, *walk, progress=progress)
+    report["seconds"] = round(time.perf_counter() - t0, 1)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_audience_report(out, report)
+    return report
+
+
 def run(
     out_dir: str | Path,
     protocol: str = "all",
@@ -66,6 +121,7 @@ def run(
     progress: Progress | None = None,
     space: str = "projector",
     materials: str | Path | None = None,
+    walk: Walk | None = None,
 ) -> dict[str, Any]:
     """Run the protocol(s), write report.json, report.md and the plots; return the report.
 
@@ -73,11 +129,16 @@ def run(
     chessboard and Gray code) rectified by `calibrate`, as with real hardware.
     ``protocol = "materials"``: the sweep on the measured materials in the folder
     ``materials`` (:mod:`viewcomp.calib.eval.materials`), at ``size`` (default 320x160).
+    ``protocol = "audience"``: the zone and walk of :mod:`viewcomp.calib.eval.audience` on
+    ``screens``; ``walk``: the tracked walk (``viewcomp.rt.track.simtrack.tracked_walk``;
+    None: the zone only).
     """
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
     if protocol == "materials":
         return _run_materials(out_dir, materials, seed, size, angles, progress)
+    if protocol == "audience":
+        return _run_audience(out_dir, seed, size, screens, walk, progress, space)
     t0 = time.perf_counter()
     world = World.make(seed=seed, size=size, space=space)
     report: dict[str, Any] = {
