@@ -189,6 +189,31 @@ def test_exported_glsl_matches_the_reference(
 
 
 @pytest.mark.gl
+def test_exported_audience_matches_the_reference(gl_ctx: Any, cal: Any, image: np.ndarray) -> None:
+    """An audience baked into the fixed-view rows: what `render --audience` computes, with
+    the tone map Compensation chooses for the audience; one viewer is the eye's export."""
+    from viewcomp.calib.world.audience import parse_audience
+
+    v = cal.rig.viewer
+    aud = parse_audience("60:120", v.distance, v.height or 0.0)
+    text, info = export_mpv_shader(cal, audience=aud, tone_sample=image, precision=32)
+    p = Compensation(cal, "pixel")(thumbnail(image), aud)
+    assert (info.alpha, info.beta) == (p.alpha, p.beta)
+    ref = compensate(p.model, image, aud, p.alpha, p.beta)
+    got = run_hook(gl_ctx, text, image)
+    assert_levels_close(got, ref, "exported GLSL (audience)")
+    assert_like_the_shader(got, ref, "exported GLSL (audience)")
+    assert "an audience of 7 viewers" in text[: text.index("//!")]
+    one, _ = export_mpv_shader(cal, audience=parse_audience("75", v.distance, v.height or 0.0),
+                               tone_sample=image)  # fmt: skip
+    eye = cal.eye(angle=75.0)
+    same, _ = export_mpv_shader(cal, eye=tuple(eye), tone_sample=image)
+    assert one == same
+    with pytest.raises(ExportError, match="pixel method"):
+        export_mpv_shader(cal, audience=aud, method="paper")
+
+
+@pytest.mark.gl
 def test_precision_8_is_within_a_level_of_the_full_precision_export(
     gl_ctx: Any, cal: Any, image: np.ndarray
 ) -> None:

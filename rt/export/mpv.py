@@ -67,8 +67,9 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.calib.errors import ViewcompError
-from viewcomp.calib.model.reference import screen_at, tone_terms
+from viewcomp.calib.model.reference import View, audience_normal, screen_at, tone_terms
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.world.audience import Audience
 from viewcomp.rt.gl.compensator import (
     inverse_position,
     paper_rows,
@@ -210,23 +211,35 @@ def pack_maps(
 
 
 def held_rows(
-    model: RuntimeModel, eye: np.ndarray, alpha: float, beta: float, sq: dict[str, np.ndarray]
+    model: RuntimeModel, eye: View, alpha: float, beta: float, sq: dict[str, np.ndarray]
 ) -> np.ndarray:
-    """The pixel method for one eye and tone map as one affine map per pixel, (H, W, 3, 4)
-    float64: row i = (G_i | w_i) with t2_i = G_i . pw + w_i the inverse LUT's squared
-    position (``pixel_t2``'s, before its clamp) of the frame's forward-LUT value pw.
+    """The pixel method for one eye (or an audience) and tone map as one affine map per
+    pixel, (H, W, 3, 4) float64: row i = (G_i | w_i) with t2_i = G_i . pw + w_i the inverse
+    LUT's squared position (``pixel_t2``'s, before its clamp) of the frame's forward-LUT
+    value pw.
 
     The GL compensator's view cache (docs/RUNTIME.md) with the tone map folded in:
     y = M^-1 (alpha (Ww pw + Aw) + beta 1 - A) = alpha M^-1 Ww pw + alpha u + beta v + c,
     M and A from :func:`~viewcomp.calib.model.reference.screen_at`, (u, v, c) from
-    :func:`~viewcomp.calib.model.reference.tone_terms`, solved in float64 on the CPU;
-    then t2 = scale y - off (``sq``: :func:`~viewcomp.rt.gl.compensator.inverse_position`).
+    :func:`~viewcomp.calib.model.reference.tone_terms`, solved in float64 on the CPU; for an
+    :class:`~viewcomp.calib.world.audience.Audience` of several viewers M^-1 is N^-1 S and
+    M^-1 A is N^-1 q (:func:`~viewcomp.calib.model.reference.audience_normal`); then
+    t2 = scale y - off (``sq``: :func:`~viewcomp.rt.gl.compensator.inverse_position`).
     12 numbers per pixel instead of the 32 of the maps.
     """
-    m, amb = screen_at(model, np.asarray(eye, np.float32))
-    m_inv = np.linalg.inv(m.astype(np.float64))
+    if isinstance(eye, Audience) and len(eye) > 1:
+        n, s_t, q = (a.astype(np.float64) for a in audience_normal(model, eye))
+        n_inv = np.linalg.inv(n)
+        m_inv = n_inv @ s_t
+        d = np.einsum("hwij,hwj->hwi", n_inv, q)
+        u, v, _ = tone_terms(m_inv, model.Aw.astype(np.float64), np.zeros_like(d))
+        c = -d
+    else:
+        one = eye.eyes[0] if isinstance(eye, Audience) else eye
+        m, amb = screen_at(model, np.asarray(one, np.float32))
+        m_inv = np.linalg.inv(m.astype(np.float64))
+        u, v, c = tone_terms(m_inv, model.Aw.astype(np.float64), amb.astype(np.float64))
     g = np.einsum("hwij,hwjk->hwik", m_inv, model.Ww.astype(np.float64))
-    u, v, c = tone_terms(m_inv, model.Aw.astype(np.float64), amb.astype(np.float64))
     rows = np.concatenate([alpha * g, (alpha * u + beta * v + c)[..., None]], axis=-1)
     rows *= np.asarray(sq["scale"], np.float64)[:, None]
     rows[..., 3] -= np.asarray(sq["off"], np.float64)
@@ -261,6 +274,7 @@ def export_mpv_shader(
     method: str = "pixel",
     angle: float | None = 90.0,
     eye: Sequence[float] | None = None,
+    audience: Audience | None = None,
     param: bool = False,
     lam: float = DEFAULT_LAMBDA,
     tone_sample: np.ndarray | None = None,
@@ -275,6 +289,8 @@ def export_mpv_shader(
         method: ``"pixel"`` or ``"paper"`` (fixed angle only).
         angle: the viewing angle (degrees) baked in, or with ``param`` the PARAM's default.
         eye: an eye position (metres) instead of ``angle`` (not with ``param``).
+        audience: several viewers instead of ``angle`` (pixel method, not with ``param``:
+            the least squares for all of them, docs/MODEL.md section 6).
         param: a ``//!PARAM angle`` instead of a fixed angle (pixel method; gpu-next).
         lam: the tone map's lambda.
         tone_sample: an RGB frame (h, w, 3) uint8 already fitted to the grid whose tone map
@@ -300,21 +316,31 @@ def export_mpv_shader(
         raise ExportError(
             "--param bakes a tone map per angle; give --tone-from, not --alpha/--beta"
         )
-    if angle is None and eye is None:
+    if audience is not None and len(audience) == 1:
+        eye, audience = tuple(audience.eyes[0]), None
+    if audience is not None and (param or method != "pixel"):
+        raise ExportError("an audience of several viewers is baked in for the pixel method; fix: "
+                          "drop --param, use --method pixel")  # fmt: skip
+    if angle is None and eye is None and audience is None:
         raise ExportError("give a viewing angle or an eye position")
     try:
-        e = cal.eye(angle=None if eye is not None else angle, eye=eye)
+        e = audience.centre if audience is not None else cal.eye(
+            angle=None if eye is not None else angle, eye=eye)  # fmt: skip
     except ValueError as exc:
         raise ExportError(str(exc)) from None
     h, w = cal.shape
     comp = Compensation(cal, method, lam)
     sample = full_range_sample() if tone_sample is None else thumbnail(tone_sample)
-    p = comp(sample, e)
+    view: View = audience if audience is not None else e
+    p = comp(sample, view)
     alpha, beta = (p.alpha, p.beta) if tone is None else (float(tone[0]), float(tone[1]))
     model = p.model
     v = cal.rig.viewer
     where = (f"angle {angle:g} deg" if eye is None else
              "eye ({:.4f}, {:.4f}, {:.4f}) m".format(*e))  # fmt: skip
+    if audience is not None:
+        where = f"an audience of {len(audience)} viewers around " + \
+            "({:.4f}, {:.4f}, {:.4f}) m".format(*e)  # fmt: skip
     if param:
         where = f"angle from the shader parameter angle (default {angle:g} deg)"
     n_inv = int(model.inv_lut.shape[0])
@@ -338,7 +364,7 @@ def export_mpv_shader(
             name = "VC_MAP"
         else:
             try:
-                rows = held_rows(model, e, alpha, beta, sq)
+                rows = held_rows(model, view, alpha, beta, sq)
             except np.linalg.LinAlgError:
                 msg = "the screen's mixing matrix is singular at this eye"
                 raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
@@ -413,6 +439,7 @@ def export_mpv_shader(
     parts += textures
     text = "".join(parts)
     eye_t = None if param else (float(e[0]), float(e[1]), float(e[2]))
-    info = MpvShaderInfo(method, (w, h), None if eye is not None else angle, eye_t, param,
+    shown_angle = None if eye is not None or audience is not None else angle
+    info = MpvShaderInfo(method, (w, h), shown_angle, eye_t, param,
                          alpha, beta, precision, len(text))  # fmt: skip
     return text, info

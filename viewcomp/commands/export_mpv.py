@@ -31,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("-o", "--output", required=True, help="the shader file to write (.glsl)")
-    add_eye_arguments(p, angle_note="; default 90, with --param the parameter's default")
+    add_eye_arguments(p, angle_note="; default 90, with --param the parameter's default",
+                      audience=True)  # fmt: skip
     p.add_argument("--param", action="store_true",
                    help="make the angle a //!PARAM (pixel method, vo=gpu-next)")  # fmt: skip
     add_tone_arguments(p, smooth=False)
@@ -66,6 +67,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--tone-from and --alpha/--beta both set the tone map; give one")
     _check_args(args)
     cal = Calibration.load(args.calib)
+    audience = None
+    if args.audience is not None:
+        from viewcomp.calib.world.audience import parse_audience
+
+        v = cal.rig.viewer
+        audience = parse_audience(args.audience, v.distance, v.height or 0.0)
     try:
         sample = None
         if args.tone_from:  # fitted to the grid as render fits it
@@ -76,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
             method=args.method,
             angle=args.angle if args.angle is not None or args.eye else 90.0,
             eye=parse_vec3(args.eye) if args.eye else None,
+            audience=audience,
             param=args.param,
             lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
             tone_sample=sample,
@@ -97,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
     w, h = info.grid
     where = "angle as //!PARAM" if info.param else (
         f"angle {info.angle:g} deg" if info.angle is not None else "fixed eye")  # fmt: skip
+    if audience is not None and len(audience) > 1:
+        where = f"an audience of {len(audience)} viewers"
     print(f"wrote {args.output}: {info.bytes / 1e6:.1f} MB, {info.method} method, {where}, "
           f"grid {w}x{h}, alpha {info.alpha:.3f} beta {info.beta:.4f}")  # fmt: skip
     print("play fullscreen on the projector with: mpv "
@@ -115,4 +125,8 @@ def _check_args(args: argparse.Namespace) -> None:
         check_angle(args.angle, "--angle")
     if args.eye:
         check_eye(parse_vec3(args.eye), f"--eye {args.eye}")
+    if args.audience is not None:  # the grammar before any work (angles use the rig's viewer)
+        from viewcomp.calib.world.audience import parse_audience
+
+        parse_audience(args.audience, 1.0, 0.0)
     check_output_file(args.output, args.calib, args.tone_from)
