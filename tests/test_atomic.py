@@ -163,3 +163,37 @@ def test_the_demo_clip_writer_is_atomic(tmp_path: Path, fail: bool) -> None:
     else:
         _write_frames(tmp_path / "clip.mp4", frames, 25)
         assert _names(tmp_path) == ["clip.mp4"] and (tmp_path / "clip.mp4").stat().st_size > 0
+
+
+@pytest.mark.gl
+def test_sigterm_mid_render_leaves_nothing_behind(tmp_path: Path) -> None:
+    """`viewcomp render` terminated (SIGTERM) while it writes a video: exit status 143, one
+    line saying so, and no partial file left in the output's folder."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from viewcomp.cli import main
+    from viewcomp.rt.testing import smooth_frame, write_clip
+
+    assert main(["simulate", str(tmp_path / "caps"), "--size", "64x32"]) == 0
+    assert main(["calibrate", str(tmp_path / "caps"), "-o", str(tmp_path / "m.vcb")]) == 0
+    write_clip(str(tmp_path / "in.mp4"), [smooth_frame(64, 32, seed=i % 7) for i in range(900)], 30)
+    out = tmp_path / "out"
+    out.mkdir()
+    p = subprocess.Popen(
+        [sys.executable, "-m", "viewcomp", "render", str(tmp_path / "m.vcb"),
+         str(tmp_path / "in.mp4"), "-o", str(out / "o.mp4"), "--angle", "60", "--backend",
+         "cpu", "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 120
+    while not list(out.iterdir()) and time.monotonic() < deadline and p.poll() is None:
+        time.sleep(0.05)  # until the encoder has opened its partial file
+    assert list(out.iterdir()), "the render never started writing"
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 143, err
+    assert "viewcomp render: terminated" in err
+    assert list(out.iterdir()) == []

@@ -6,7 +6,9 @@ import argparse
 import importlib
 import logging
 import os
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Sequence
 from typing import Any
@@ -107,6 +109,16 @@ def _own_words_only(command: str) -> None:
     own.setLevel(logging.WARNING)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a service manager, ``kill``): raised in the main thread, so that what a
+    command was writing is cleaned up as for Ctrl-C (the atomic writers remove their partial
+    files on any exception)."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
@@ -114,13 +126,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     full disk, or a bad option): one line naming the thing at fault and the fix, nothing
     written; a bad option (argparse's or a :class:`UsageError`) raises ``SystemExit(2)``
     as argparse does. 1: any other exception, which is a bug: its traceback and a note asking to
-    report it. 130: interrupted (Ctrl-C); partial outputs are removed as for an error.
+    report it. 130: interrupted (Ctrl-C), 143: terminated (SIGTERM); partial outputs are
+    removed as for an error.
     """
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # before anything imports cv2
     parser = build_parser()
     args = parser.parse_args(argv)
     _own_words_only(args.command)
     name = f"viewcomp {args.command}"
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # a host's handler stays
+            previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return _run(args, parser, name)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, name: str) -> int:
+    """``args.run(args)`` with :func:`main`'s exit statuses and messages."""
     try:
         return int(args.run(args) or 0)
     except UsageError as e:  # like argparse's own errors: SystemExit(2)
@@ -131,6 +157,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as e:
         print(f"{name}: error: {describe_os_error(e)}", file=sys.stderr)
         return 2
+    except Terminated:
+        print(f"{name}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f"{name}: interrupted", file=sys.stderr)
         return 130
