@@ -118,8 +118,40 @@ def test_cli_preview_image_and_video(tmp_path: Path) -> None:
     r = _cli("preview", str(bundle), str(clip), "-o", str(sheet), "--eye", "0.1,0.0,0.5",
              "--frames", "3")  # fmt: skip
     assert r.returncode == 0, r.stderr
-    assert "mean of 3 frames" in r.stdout
+    assert "3 frames (mean)" in r.stdout
     assert read_rgb8(sheet).shape[0] > 3 * 32
     for bad in (["-o", str(tmp_path / "x.jpg")], ["-o", str(photo)]):
         r = _cli("preview", str(bundle), str(photo), "--angle", "60", *bad)
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+
+
+def test_audience_preview_one_row_per_viewer(tmp_path: Path) -> None:
+    """--audience: one row per viewer, each what that viewer sees of the audience's
+    compensation, and the printed error is their mean. (Whether the audience's image beats
+    another is a property of the scene: `evaluate --protocol audience` measures it.)"""
+    from viewcomp.calib.comp.compensation import Compensation
+    from viewcomp.calib.world.audience import zone
+
+    cal = small_calibration(64, 32, screen="magenta")
+    bundle = tmp_path / "screen.vcb"
+    cal.save(bundle)
+    photo = tmp_path / "photo.png"
+    write_png(photo, natural_images(64, 32)["coffee"])
+    out = tmp_path / "seen.png"
+    r = _cli("preview", str(bundle), str(photo), "-o", str(out), "--audience", "60:120:3")
+    assert r.returncode == 0, r.stderr
+    assert "over the 3 viewers" in r.stdout
+    one = tmp_path / "one.png"
+    assert _cli("preview", str(bundle), str(photo), "-o", str(one), "--angle", "60").returncode == 0
+    assert read_rgb8(out).shape[0] > 2.5 * (read_rgb8(one).shape[0] - 30)
+    v = cal.rig.viewer
+    aud = zone(60, 120, 3, v.distance, v.height)
+    comp = Compensation(cal, "pixel")
+    image = natural_images(64, 32)["coffee"]
+    seen = [predict(comp, image, e, aud) for e in aud.eyes]
+    assert (
+        f"compensated (per-pixel method) dE {np.mean([p.de_compensated for p in seen]):.1f}"
+        in r.stdout
+    )
+    assert not np.array_equal(seen[0].compensated, seen[2].compensated)  # seats differ
+    assert all(np.array_equal(p.projected, seen[0].projected) for p in seen)  # one image

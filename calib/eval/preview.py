@@ -19,7 +19,7 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.fit.calibrate import Calibration
-from viewcomp.calib.model.reference import predict_view, white_response
+from viewcomp.calib.model.reference import View, predict_view, white_response
 
 BAND = (24, 24, 24)  # RGB of the label bands
 TEXT = (255, 255, 255)
@@ -50,11 +50,16 @@ def encode8(cal: Calibration, linear: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(enc) * 255.0).astype(np.uint8)
 
 
-def predict(comp: Compensation, image: np.ndarray, eye: np.ndarray) -> Preview:
+def predict(
+    comp: Compensation, image: np.ndarray, eye: np.ndarray, compensate_for: View | None = None
+) -> Preview:
     """The preview of ``image`` (H, W, 3) uint8 on the projector grid seen from ``eye``
-    (metres), with ``comp``'s method and tone map (a still: no smoothing)."""
+    (metres), with ``comp``'s method and tone map (a still: no smoothing), compensated for
+    ``eye`` or for ``compensate_for`` (another eye, or an audience: what one of its viewers
+    sees of the audience's compensation)."""
     eye = np.asarray(eye, np.float64)
-    projected, params = comp.compensate_image(image, eye)
+    projected, params = comp.compensate_image(image, eye if compensate_for is None else
+                                              compensate_for)  # fmt: skip
     model = params.model
     if comp.method == "paper":  # the paper's model of the screen at this eye, no feedback
         plain = comp.paper_model(eye, np.ones(3))

@@ -17,12 +17,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "what the white screen would show and with the uncompensated projection, labelled, "
         "with each one's colour error against the white screen (mean CIEDE2000). A fourth "
         "column shows what the projector itself shows. For a video, a contact sheet: one row "
-        "per sampled frame (each compensated as a still).",
+        "per sampled frame (each compensated as a still). With --audience, the picture is "
+        "compensated for all the viewers at once and there is one row per viewer: what each "
+        "of them sees of it.",
     )
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("input", help="image (.png, .jpg, ...) or video (anything FFmpeg reads)")
     p.add_argument("-o", "--output", required=True, help="the picture to write (.png)")
-    add_eye_arguments(p, required=True)
+    add_eye_arguments(p, required=True, audience=True)
     add_tone_arguments(p, smooth=False)
     p.add_argument("--frames", type=int, default=4, metavar="N",
                    help="video: rows of the contact sheet, evenly spaced (default 4)")  # fmt: skip
@@ -69,7 +71,17 @@ def run(args: argparse.Namespace) -> int:
     if args.frames < 1:
         raise UsageError(f"--frames is at least 1, got {args.frames}")
     cal = Calibration.load(args.calib)
-    eye = cal.eye(args.angle, parse_vec3(args.eye) if args.eye else None)
+    audience = None
+    if args.audience is not None:
+        from viewcomp.calib.world.audience import parse_audience
+
+        v = cal.rig.viewer
+        audience = parse_audience(args.audience, v.distance, v.height or 0.0)
+        if len(audience) > 1 and args.method != "pixel":
+            raise UsageError("--audience with several viewers needs --method pixel")
+        eyes = list(audience.eyes)
+    else:
+        eyes = [cal.eye(args.angle, parse_vec3(args.eye) if args.eye else None)]
     h, w = cal.shape
     if is_image(src):
         images = [("", fit_rgb(read_rgb8(src), w, h))]
@@ -79,20 +91,26 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"{src} has no video frames to preview; give another video")
     lam = DEFAULT_LAMBDA if args.lam is None else args.lam
     comp = Compensation(cal, args.method, lam)
-    angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
-    where = f"{angle:.0f} deg, eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m"
     previews = []
     for label, rgb in images:
-        p = predict(comp, np.ascontiguousarray(rgb, dtype=np.uint8), eye)
-        previews.append((f"seen at {where}" if not label else f"{label}, seen at {angle:.0f} deg",
-                         p))  # fmt: skip
-    title = (f"predicted by the calibration for a viewer at {where}; "
-             f"{METHOD_NAMES[args.method]}, mean CIEDE2000 vs the white screen")  # fmt: skip
+        for eye in eyes:
+            angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
+            where = f"{angle:.0f} deg, eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m"
+            p = predict(comp, np.ascontiguousarray(rgb, dtype=np.uint8), eye, audience)
+            previews.append((f"seen at {where}" if not label else
+                             f"{label}, seen at {angle:.0f} deg", p))  # fmt: skip
+    if audience is not None and len(audience) > 1:
+        who = f"an audience of {len(audience)} viewers (one row each)"
+        what = f"over the {len(audience)} viewers"
+    else:
+        who, what = f"a viewer at {where}", f"at {angle:.0f} degrees"
+    title = (f"predicted by the calibration for {who}; {METHOD_NAMES[args.method]}, mean "
+             "CIEDE2000 vs the white screen")  # fmt: skip
     write_png(out, preview_picture(previews, args.method, title))
     unc = np.mean([p.de_uncompensated for _, p in previews])
     com = np.mean([p.de_compensated for _, p in previews])
-    rows = f" (mean of {len(previews)} frames)" if len(previews) > 1 else ""
-    print(f"wrote {out}: predicted colour error at {angle:.0f} degrees{rows}: "
+    frames = f", {len(images)} frames" if len(images) > 1 else ""
+    print(f"wrote {out}: predicted colour error {what}{frames} (mean): "
           f"uncompensated dE {unc:.1f}, compensated ({METHOD_NAMES[args.method]}) "
           f"dE {com:.1f}")  # fmt: skip
     return 0
