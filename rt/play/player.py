@@ -1078,8 +1078,10 @@ class Player:
         s = self.stats
         idx, path = self._file
         state = " PAUSED" if self._paused else ""
+        aud = self.renderer.audience
+        who = f"  ({len(aud)} viewers: their mean)" if aud is not None else ""
         return (
-            f"angle {angle:6.1f} deg  eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m",
+            f"angle {angle:6.1f} deg  eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m{who}",
             f"{self._fps_now:5.1f} fps  dropped {s.dropped} ({s.drop_percent:.1f} %)"
             + ("  COMPENSATION OFF" if self.renderer.identity else ""),
             f"file {idx + 1}/{len(self.playlist)}: {path.name[:40]}{state}",
