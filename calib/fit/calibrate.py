@@ -258,8 +258,10 @@ def calibrate(
     check_captures(cs)
     t0 = time.perf_counter()
     geometry = ScreenGeometry.from_rig(cs.rig)
-    white = {k: v.astype(np.float64) for k, v in cs.white.items()}
-    screen = {k: v.astype(np.float64) for k, v in cs.screen.items()}
+    # The captures as loaded (float32, the capture set's own arrays: no copies, which at
+    # 3840x2160 would be 2.4 GB in float64); the fits' sums and solves run in float64.
+    white = {k: np.asarray(v, np.float32) for k, v in cs.white.items()}
+    screen = {k: np.asarray(v, np.float32) for k, v in cs.screen.items()}
     missing = [k for k in REQUIRED if k not in white or k not in screen]
     if missing:
         raise FitError(f"white|screen/{missing[0]}", "missing from the capture set")
@@ -275,6 +277,7 @@ def calibrate(
     # by the camera exceeds a quarter of the diffuse level) and clipped pixels.
     lobe_cam = pixel.lobe.at(geometry, geometry.camera)
     stat_mask = ~clipped & np.all(lobe_cam <= 0.25 * np.maximum(pixel.lobe.baseline, 1e-6), -1)
+    del lobe_cam
     if np.mean(stat_mask) < 0.5:
         stat_mask = ~clipped
     try:

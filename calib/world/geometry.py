@@ -86,8 +86,19 @@ def view_vectors(pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
 
 
 def r_dot_v(refl: np.ndarray, pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
-    """R.V per pixel, (H, W), in -1..1 (not clamped)."""
-    return np.sum(refl * view_vectors(pos, eye), axis=-1)
+    """R.V per pixel, (H, W) float64, in -1..1 (not clamped).
+
+    Computed a block of about 2^18 pixels of rows at a time: the (H, W, 3) float64
+    temporaries of a whole 3840x2160 grid would be 200 MB each."""
+    refl, pos = np.asarray(refl), np.asarray(pos)
+    if refl.ndim != 3:
+        return np.sum(refl * view_vectors(pos, eye), axis=-1)
+    out = np.empty(refl.shape[:-1])
+    step = max(1, (1 << 18) // max(refl.shape[1], 1))
+    for r0 in range(0, refl.shape[0], step):
+        rows = slice(r0, r0 + step)
+        out[rows] = np.sum(refl[rows] * view_vectors(pos[rows], eye), axis=-1)
+    return out
 
 
 def irradiance_falloff(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:
