@@ -138,7 +138,7 @@ def main() -> None:
         "load_average_start": os.getloadavg(),
         "calibrate": {},
     }
-    for size in args.sizes.split(","):
+    for size in [s for s in args.sizes.split(",") if s and s != "none"]:
         simulated(cache, size)  # outside the measured run
         report["calibrate"][size] = _calibrate(cache, size)
         print(f"calibrate {size}: {report['calibrate'][size]}", file=sys.stderr)

@@ -59,7 +59,7 @@ def test_round_trip(tmp_path: Path) -> None:
         assert arrays[name].dtype == a.dtype and arrays[name].shape == a.shape
         assert np.array_equal(arrays[name], a)
     doc = _meta_doc(path)
-    assert doc["format"] == "viewcomp-bundle" and doc["schema"] == SCHEMA_VERSION == 2
+    assert doc["format"] == "viewcomp-bundle" and doc["schema"] == SCHEMA_VERSION == 3
 
 
 def test_overwrite_is_atomic_and_leaves_no_temp(tmp_path: Path) -> None:
@@ -154,10 +154,15 @@ def test_unknown_and_newer_schema(tmp_path: Path) -> None:
     for schema, expected in [
         (
             7,
-            "written by a newer viewcomp (schema 7); this viewcomp reads schema 2 - "
+            "written by a newer viewcomp (schema 7); this viewcomp reads schema 3 - "
             "upgrade viewcomp or recalibrate",
         ),
-        (0, "unknown schema 0; this viewcomp reads schema 2"),
+        (
+            2,
+            "written by an older viewcomp (schema 2, full float32 maps); this viewcomp reads "
+            "schema 3 - run `viewcomp calibrate CAPTURE_DIR -o CALIB` again on its capture set",
+        ),
+        (0, "unknown schema 0; this viewcomp reads schema 3"),
         ("1", "unknown schema '1'"),
     ]:
         doc = _meta_doc(path)
