@@ -65,7 +65,7 @@ def test_screen_round_trip_within_the_bound() -> None:
         mix[..., i, i] = 1.0
     wmap = mix * gain[..., None, :]
     amb = 0.02 * _field(rng, h, w, 3, 0.0)
-    arrays = encode_screen("w", wmap, amb)
+    arrays = dict(encode_screen("w", wmap, amb))
     assert {k for k in arrays if not k.endswith("_step")} == {
         "pixel.Ww.gain",
         "pixel.Ww.mix",

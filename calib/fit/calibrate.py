@@ -11,6 +11,7 @@ atomic).
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,8 +90,6 @@ class Calibration:
         # The per-pixel maps compact (viewcomp.calib.io.compact: error-bounded integers);
         # the geometry not at all: the rig in meta gives it back exactly (from_rig).
         arrays = {
-            **encode_screen("w", x.white.W, x.white.A),
-            **encode_screen("c", x.screen.W, x.screen.A),
             "pixel.f_lut": x.f_lut,
             "pixel.lobe": lobe.table,
             "pixel.baseline": lobe.baseline,
@@ -133,7 +132,13 @@ class Calibration:
                 "rms_log": p.fit.rms.tolist(),
                 "r2": p.fit.r2.tolist(),
             }
-        save_bundle(path, arrays, meta)
+        # The maps last, encoded one array at a time as the bundle is written.
+        pairs = itertools.chain(
+            arrays.items(),
+            encode_screen("w", x.white.W, x.white.A),
+            encode_screen("c", x.screen.W, x.screen.A),
+        )
+        save_bundle(path, pairs, meta)
 
     @classmethod
     def load(cls, path: str | Path) -> Calibration:

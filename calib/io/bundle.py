@@ -20,6 +20,7 @@ import re
 import struct
 import zipfile
 import zlib
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -59,42 +60,50 @@ class BundleError(ViewcompError, ValueError):
     """A calibration bundle that cannot be used; the message names file, cause and fix."""
 
 
-def save_bundle(path: str | Path, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
+def save_bundle(
+    path: str | Path,
+    arrays: Mapping[str, np.ndarray] | Iterable[tuple[str, np.ndarray]],
+    meta: dict[str, Any],
+) -> None:
     """Write a calibration bundle at exactly ``path``, atomically.
 
     ``arrays`` maps names (letters, digits, ``_ . -``) to numpy arrays of any shape and
-    non-object dtype; ``meta`` is a JSON-serialisable dict (lists come back as lists, tuples
-    as lists). Parent folders are created. Raises ``ValueError`` for an unsafe name, an object
-    array or meta that JSON cannot hold; nothing is written then.
+    non-object dtype, or yields (name, array) pairs: each array is written as it comes and
+    can be freed before the next is made (a 4K calibration's maps are encoded one at a time).
+    ``meta`` is a JSON-serialisable dict (lists come back as lists, tuples as lists). Parent
+    folders are created. Raises ``ValueError`` for an unsafe or repeated name, an object
+    array or meta that JSON cannot hold; ``path`` is left as it was then.
     """
     p = Path(path)
-    listing: dict[str, dict[str, Any]] = {}
-    checked: dict[str, np.ndarray] = {}
-    for name, arr in arrays.items():
-        if not isinstance(name, str) or not _NAME_RE.match(name):
-            raise ValueError(f"bundle array name {name!r} must be letters, digits, '_', '.', '-'")
-        a = np.asarray(arr)
-        if a.dtype.hasobject:
-            raise ValueError(f"bundle array {name!r} has an object dtype, which needs pickle")
-        checked[name] = a
-        listing[name] = {"dtype": a.dtype.str, "shape": list(a.shape)}
     if not isinstance(meta, dict):
         raise ValueError(f"bundle meta must be a dict, got {type(meta).__name__}")
-    doc = {"format": FORMAT, "schema": SCHEMA_VERSION, "arrays": listing, "meta": meta}
     try:
-        meta_bytes = json.dumps(doc, indent=1, allow_nan=False).encode("utf-8")
+        json.dumps(meta, allow_nan=False)  # before anything is written
     except (TypeError, ValueError) as exc:
         raise ValueError(f"bundle meta is not JSON-serialisable: {exc}") from None
-
+    pairs = arrays.items() if isinstance(arrays, Mapping) else arrays
+    listing: dict[str, dict[str, Any]] = {}
     p.parent.mkdir(parents=True, exist_ok=True)
     with (
         atomic_open(p) as f,
         zipfile.ZipFile(f, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=6) as zf,
     ):
-        zf.writestr(META_MEMBER, meta_bytes)
-        for name, a in checked.items():
+        for name, arr in pairs:
+            if not isinstance(name, str) or not _NAME_RE.match(name) or name in listing:
+                raise ValueError(
+                    f"bundle array name {name!r} must be letters, digits, '_', '.', '-', "
+                    "and appear once"
+                )
+            a = np.asarray(arr)
+            if a.dtype.hasobject:
+                raise ValueError(f"bundle array {name!r} has an object dtype, which needs pickle")
+            listing[name] = {"dtype": a.dtype.str, "shape": list(a.shape)}
             with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
                 np.lib.format.write_array(member, a, allow_pickle=False)
+            del a, arr
+        # meta.json last: its listing is of what was written (the loader reads by name).
+        doc = {"format": FORMAT, "schema": SCHEMA_VERSION, "arrays": listing, "meta": meta}
+        zf.writestr(META_MEMBER, json.dumps(doc, indent=1, allow_nan=False).encode("utf-8"))
 
 
 def _fail(p: Path, cause: str, fix: str) -> BundleError:

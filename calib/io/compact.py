@@ -26,6 +26,8 @@ whose integers would not fit in int32 keeps its float32 bytes instead (flagged b
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 #: The largest error of a stored value, relative to its component's median magnitude: the
@@ -107,8 +109,11 @@ def decode_map(planes: np.ndarray, step: np.ndarray, shape: tuple[int, ...]) -> 
     return out.reshape(shape)
 
 
-def encode_screen(prefix: str, w_map: np.ndarray, a_map: np.ndarray) -> dict[str, np.ndarray]:
-    """One screen's model as bundle arrays, each with its ``_step`` (C,): for prefix "w"
+def encode_screen(
+    prefix: str, w_map: np.ndarray, a_map: np.ndarray
+) -> Iterator[tuple[str, np.ndarray]]:
+    """One screen's model as (name, array) pairs for the bundle, made one at a time (for
+    :func:`~viewcomp.calib.io.bundle.save_bundle`), each with its ``_step`` (C,): for prefix "w"
     (the white screen; "c": the real one) ``pixel.Ww.gain`` (4, H, W, 3), ``pixel.Ww.mix``
     (4, H, W, 6) and ``pixel.Aw`` (4, H, W, 3), uint8 byte planes (:func:`encode_map`).
 
@@ -118,21 +123,26 @@ def encode_screen(prefix: str, w_map: np.ndarray, a_map: np.ndarray) -> dict[str
     """
     h, w = w_map.shape[:2]
     gain = np.ascontiguousarray(np.einsum("hwjj->hwj", w_map), np.float32)
+    planes, step = encode_map(gain, REL_TOL, predict=False)
+    yield f"pixel.W{prefix}.gain", planes
+    yield f"pixel.W{prefix}.gain_step", step
     # W~ = W diag(D)^-1; a gain of exactly 0 (a dead pixel of the white screen) leaves its
     # column's entries at 0, which D = 0 multiplies back to 0 anyway.
     safe = np.where(gain != 0, gain, np.float32(1.0))
+    del gain, planes
     mix = np.empty((h, w, len(_OFF)), np.float32)
     for k, flat in enumerate(_OFF):
         i, j = divmod(flat, 3)
         mix[..., k] = w_map[..., i, j] / safe[..., j]
-    out = {}
-    for name, arr, tol, predict in (
-        (f"pixel.W{prefix}.gain", gain, REL_TOL, False),
-        (f"pixel.W{prefix}.mix", mix, MIX_REL_TOL, True),
-        (f"pixel.A{prefix}", a_map, REL_TOL, True),
-    ):
-        out[name], out[f"{name}_step"] = encode_map(arr, tol, predict)
-    return out
+    del safe
+    planes, step = encode_map(mix, MIX_REL_TOL, predict=True)
+    del mix
+    yield f"pixel.W{prefix}.mix", planes
+    yield f"pixel.W{prefix}.mix_step", step
+    del planes
+    planes, step = encode_map(a_map, REL_TOL, predict=True)
+    yield f"pixel.A{prefix}", planes
+    yield f"pixel.A{prefix}_step", step
 
 
 def decode_screen(arrays: dict[str, np.ndarray], prefix: str) -> tuple[np.ndarray, np.ndarray]:
