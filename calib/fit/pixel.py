@@ -77,6 +77,15 @@ class PixelCalibration:
         """The per-pixel runtime model (docs/RUNTIME.md); the eye is a per-frame uniform."""
         inv, lo, hi = inverse_lut(self.f_lut)
         f32 = np.float32
+
+        def share(a: np.ndarray) -> np.ndarray:
+            """The float32 maps themselves, read-only (no copy: 200 MB at 1080p)."""
+            out = np.asarray(a, f32)
+            if out is a:
+                out = out.view()
+                out.flags.writeable = False
+            return out
+
         return RuntimeModel(
             method="pixel",
             refl=self.geometry.refl.astype(f32),
@@ -86,10 +95,10 @@ class PixelCalibration:
             inv_lut=inv.astype(f32),
             inv_lo=lo.astype(f32),
             inv_hi=hi.astype(f32),
-            Ww=self.white.W.astype(f32),
-            Aw=self.white.A.astype(f32),
-            Wc=self.screen.W.astype(f32),
-            Ac=self.screen.A.astype(f32),
+            Ww=share(self.white.W),
+            Aw=share(self.white.A),
+            Wc=share(self.screen.W),
+            Ac=share(self.screen.A),
             lobe=self.lobe.table.astype(f32),
             lobe_half=self.lobe.half,
             lobe_black=self.black_share.astype(f32),
