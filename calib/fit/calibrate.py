@@ -152,12 +152,12 @@ class Calibration:
             rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
             # The geometry calibrate used, computed again from the same rig (exactly).
             g = ScreenGeometry.from_rig(rig)
+            white_w, white_a = decode_screen(arrays, "w")
+            screen_w, screen_a = decode_screen(arrays, "c")
             for device in ("projector", "camera"):
                 listed = np.asarray(meta["geometry"][device], np.float64)
                 if listed.shape != (3,) or not np.array_equal(listed, getattr(g, device)):
                     raise ValueError(f"the {device} is at {listed}, its rig says otherwise")
-            white_w, white_a = decode_screen(arrays, "w")
-            screen_w, screen_a = decode_screen(arrays, "c")
             for name, m in (("Ww", white_w), ("Aw", white_a), ("Wc", screen_w), ("Ac", screen_a)):
                 if m.shape[:2] != g.pos.shape[:2] or not np.all(np.isfinite(m)):
                     raise ValueError(f"pixel.{name} decodes to {m.shape} or to non-finite values")

@@ -12,17 +12,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewcomp.calib.errors import ViewcompError
-from viewcomp.calib.world.rig import Device, Rig
+from viewcomp.calib.world.rig import Device, Rig, unit_rows
 
 NORMAL = np.array([0.0, 0.0, 1.0])
 
 
 class GeometryError(ViewcompError, ValueError):
     """The rig's geometry cannot be used (a pixel misses the screen, a device behind it)."""
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def meet_screen(origin: np.ndarray, rays: np.ndarray, device: str) -> np.ndarray:
@@ -74,7 +70,7 @@ def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
 
 def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:
     """R(x) = 2 (Y.N) N - Y with Y = normalize(P - p) (Eq. 6). (H, W, 3) unit vectors."""
-    y = _unit(np.asarray(projector_position, float) - pos)
+    y = unit_rows(np.asarray(projector_position, float) - pos)
     r = -y
     r[..., 2] = y[..., 2]
     return r
@@ -82,7 +78,7 @@ def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.nd
 
 def view_vectors(pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
     """V(x) = normalize(E - p). (H, W, 3) unit vectors toward the eye."""
-    return _unit(np.asarray(eye, float) - pos)
+    return unit_rows(np.asarray(eye, float) - pos)
 
 
 def r_dot_v(refl: np.ndarray, pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
