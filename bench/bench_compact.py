@@ -11,7 +11,7 @@ largest difference in 8-bit levels, its 99.9th percentile, how many pixel-channe
 more than 1 and by any, and the bundle's size. One JSON object; nothing is asserted.
 
     .venv/bin/python bench/bench_compact.py [--size 640x320] [--cache /tmp/viewcomp-bench-compact]
-        [--materials /work/shared/data/materials]
+        [--materials DIR]   (default: shared/data/materials beside the repository)
 """
 
 from __future__ import annotations
@@ -74,7 +74,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="640x320")
     ap.add_argument("--cache", default="/tmp/viewcomp-bench-compact")
-    ap.add_argument("--materials", default="/work/shared/data/materials")
+    beside = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "materials"
+    ap.add_argument("--materials", default=str(beside), help="folder of measured materials")
     ap.add_argument("--screens", default=",".join(SCREENS), help="names, comma-separated")
     args = ap.parse_args()
     cache = Path(args.cache)
