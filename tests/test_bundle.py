@@ -91,6 +91,37 @@ def test_failed_save_leaves_old_bundle_and_no_temp(
     assert load_bundle(path)[1] == META
 
 
+def test_arrays_made_one_at_a_time(tmp_path: Path) -> None:
+    """(name, array) pairs are written as they come (a 4K calibration's maps are encoded
+    one at a time): the same bundle as from a dict; a repeated name or a failure while
+    making them leaves the path as it was."""
+    made = []
+
+    def pairs():
+        for name, a in _arrays().items():
+            made.append(name)
+            yield name, a
+
+    path = tmp_path / "calib"
+    save_bundle(path, pairs(), META)
+    arrays, meta = load_bundle(path)
+    assert meta == META and made == list(_arrays())
+    for name, a in _arrays().items():
+        assert np.array_equal(arrays[name], a) and arrays[name].dtype == a.dtype
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match="appear once"):
+        save_bundle(path, [("a", np.ones(2)), ("a", np.zeros(2))], {})
+
+    def failing():
+        yield "a", np.ones(2)
+        raise RuntimeError("encoder failed")
+
+    with pytest.raises(RuntimeError, match="encoder failed"):
+        save_bundle(path, failing(), {})
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["calib"]
+
+
 def test_save_refusals(tmp_path: Path) -> None:
     path = tmp_path / "calib"
     with pytest.raises(ValueError, match="object dtype"):
