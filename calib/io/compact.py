@@ -86,7 +86,7 @@ def decode_map(planes: np.ndarray, step: np.ndarray, shape: tuple[int, ...]) -> 
     """The float32 map of ``shape`` (H, W, ...) that :func:`encode_map` stored.
 
     Raises:
-        ValueError: planes or step that do not fit ``shape``, or a step not finite or < 0.
+        ValueError: planes or step that do not fit ``shape``, or a step not finite.
     """
     h, w = shape[:2]
     n = int(np.prod(shape[2:], dtype=np.int64))
