@@ -12,7 +12,7 @@ to the first frame with the shader and without, and the load time (their differe
 the shader adds).
 Timings are this machine's and its load's (see ``load_average``); never asserted.
 
-Run from the repository root (the 1080p calibration takes about a minute and 2.2 GB)::
+Run from the repository root (the 1080p calibration takes about 16 s and 0.9 GB)::
 
     .venv/bin/python bench/bench_mpv.py [--grids 640x320,1920x1080] [--runs 3]
         [--calib 640x320=a.vcb --calib 1920x1080=b.vcb]

@@ -546,14 +546,14 @@ CASES = [
     Case(
         "bundle-zip-bomb",
         [*R, "--angle", "60"],
-        "pixel.Ww.npy declares 3900000000 bytes",
-        [_bomb_member("pixel.Ww.npy")],
+        "pixel.Ww.gain.npy declares 3900000000 bytes",
+        [_bomb_member("pixel.Ww.gain.npy")],
     ),
     Case(
         "bundle-zip-bomb-lying-size",
         [*R, "--angle", "60"],
-        "damaged member pixel.Ww.npy",
-        [_bomb_member("pixel.Ww.npy", size=48 * 96 * 9 * 4 + 128)],
+        "damaged member pixel.Ww.gain.npy",
+        [_bomb_member("pixel.Ww.gain.npy", size=4 * 48 * 96 * 3 + 128)],
     ),
     Case(
         "bundle-zip-bomb-unlisted",
@@ -571,31 +571,40 @@ CASES = [
         "bundle-npy-header-447-gib",
         [*R, "--angle", "60"],
         "over the 2 GiB limit",
-        [_huge_header("pixel.Ww", (200000, 200000, 3))],
+        [_huge_header("pixel.Ww.gain", (200000, 200000, 3))],
     ),
     Case(
         "bundle-wrong-shape",
         [*R, "--angle", "60"],
-        "'pixel.Ww' is <f4 [48, 96, 3]",
-        [_npy_member("pixel.Ww", np.zeros((48, 96, 3), np.float32))],
+        "'pixel.Ww.gain' is |u1 [48, 96, 3]",
+        [_npy_member("pixel.Ww.gain", np.zeros((48, 96, 3), np.uint8))],
     ),
     Case(
         "bundle-wrong-grid",
         [*R, "--angle", "60"],
-        "needs a 'f'-kind array of shape 48x96x3",
-        [_npy_member("pixel.Aw", np.zeros((40, 96, 3), np.float32))],
+        "needs a 'u'-kind array of shape 4x48x96x3",
+        [_npy_member("pixel.Aw", np.zeros((4, 40, 96, 3), np.uint8))],
     ),
     Case(
         "bundle-nan-map",
         [*R, "--angle", "60"],
-        "'pixel.Ac' holds 1 NaN",
+        "'pixel.Ac_step' holds 1 NaN",
+        [_npy_member("pixel.Ac_step", np.array([1e-8, np.nan, 1e-8]))],
+    ),
+    Case(
+        "bundle-map-decodes-to-nan",  # a component kept as float32 bytes (step 0): a NaN
+        [*R, "--angle", "60"],
+        "pixel.Ac decodes to (48, 96, 3) or to non-finite values",
         [
+            _npy_member("pixel.Ac_step", np.zeros(3)),
             _npy_member(
                 "pixel.Ac",
-                np.where(np.arange(48 * 96 * 3).reshape(48, 96, 3) == 5, np.nan, 0.01).astype(
-                    np.float32
-                ),
-            )
+                np.full((48 * 96 * 3,), np.nan, "<f4")
+                .view(np.uint8)
+                .reshape(48, 96, 3, 4)
+                .transpose(3, 0, 1, 2)
+                .copy(),
+            ),
         ],
     ),
     Case(
@@ -683,7 +692,7 @@ def test_zip_bomb_is_refused_with_little_memory(here: Path) -> None:
     """The bomb (3.6 MB inflating to 3.9 GB) is refused from the zip directory: peak memory
     of a process that loads it stays within 200 MB of what the imports took. Time is printed,
     not asserted (tests/ hold no timed assertions)."""
-    _bomb_member("pixel.Ww.npy")(here)
+    _bomb_member("pixel.Ww.gain.npy")(here)
     assert (here / "cal.vcb").stat().st_size < 5_000_000
     code = (
         "import resource, sys, time\n"

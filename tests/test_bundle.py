@@ -59,7 +59,7 @@ def test_round_trip(tmp_path: Path) -> None:
         assert arrays[name].dtype == a.dtype and arrays[name].shape == a.shape
         assert np.array_equal(arrays[name], a)
     doc = _meta_doc(path)
-    assert doc["format"] == "viewcomp-bundle" and doc["schema"] == SCHEMA_VERSION == 2
+    assert doc["format"] == "viewcomp-bundle" and doc["schema"] == SCHEMA_VERSION == 3
 
 
 def test_overwrite_is_atomic_and_leaves_no_temp(tmp_path: Path) -> None:
@@ -89,6 +89,37 @@ def test_failed_save_leaves_old_bundle_and_no_temp(
     monkeypatch.undo()
     assert [p.name for p in tmp_path.iterdir()] == ["calib"]
     assert load_bundle(path)[1] == META
+
+
+def test_arrays_made_one_at_a_time(tmp_path: Path) -> None:
+    """(name, array) pairs are written as they come (a 4K calibration's maps are encoded
+    one at a time): the same bundle as from a dict; a repeated name or a failure while
+    making them leaves the path as it was."""
+    made = []
+
+    def pairs():
+        for name, a in _arrays().items():
+            made.append(name)
+            yield name, a
+
+    path = tmp_path / "calib"
+    save_bundle(path, pairs(), META)
+    arrays, meta = load_bundle(path)
+    assert meta == META and made == list(_arrays())
+    for name, a in _arrays().items():
+        assert np.array_equal(arrays[name], a) and arrays[name].dtype == a.dtype
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match="appear once"):
+        save_bundle(path, [("a", np.ones(2)), ("a", np.zeros(2))], {})
+
+    def failing():
+        yield "a", np.ones(2)
+        raise RuntimeError("encoder failed")
+
+    with pytest.raises(RuntimeError, match="encoder failed"):
+        save_bundle(path, failing(), {})
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["calib"]
 
 
 def test_save_refusals(tmp_path: Path) -> None:
@@ -154,10 +185,15 @@ def test_unknown_and_newer_schema(tmp_path: Path) -> None:
     for schema, expected in [
         (
             7,
-            "written by a newer viewcomp (schema 7); this viewcomp reads schema 2 - "
+            "written by a newer viewcomp (schema 7); this viewcomp reads schema 3 - "
             "upgrade viewcomp or recalibrate",
         ),
-        (0, "unknown schema 0; this viewcomp reads schema 2"),
+        (
+            2,
+            "written by an older viewcomp (schema 2, full float32 maps); this viewcomp reads "
+            "schema 3 - run `viewcomp calibrate CAPTURE_DIR -o CALIB` again on its capture set",
+        ),
+        (0, "unknown schema 0; this viewcomp reads schema 3"),
         ("1", "unknown schema '1'"),
     ]:
         doc = _meta_doc(path)

@@ -11,6 +11,7 @@ atomic).
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ from viewcomp.calib.fit.pixel import (
 from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
+from viewcomp.calib.io.compact import decode_screen, encode_screen
 from viewcomp.calib.model.lobe import LOBE_N, LOBE_PARAMS
 from viewcomp.calib.world.eye import EyeError, check_angle, check_eye
 from viewcomp.calib.world.geometry import ScreenGeometry
@@ -85,14 +87,10 @@ class Calibration:
         p, x = self.paper, self.pixel
         g = x.geometry
         lobe = x.lobe
+        # The per-pixel maps compact (viewcomp.calib.io.compact: error-bounded integers);
+        # the geometry not at all: the rig in meta gives it back exactly (from_rig).
         arrays = {
-            "geometry.pos": g.pos,
-            "geometry.refl": g.refl,
             "pixel.f_lut": x.f_lut,
-            "pixel.Ww": x.white.W.astype(np.float32),
-            "pixel.Aw": x.white.A.astype(np.float32),
-            "pixel.Wc": x.screen.W.astype(np.float32),
-            "pixel.Ac": x.screen.A.astype(np.float32),
             "pixel.lobe": lobe.table,
             "pixel.baseline": lobe.baseline,
             "pixel.black_share": x.black_share,
@@ -134,7 +132,13 @@ class Calibration:
                 "rms_log": p.fit.rms.tolist(),
                 "r2": p.fit.r2.tolist(),
             }
-        save_bundle(path, arrays, meta)
+        # The maps last, encoded one array at a time as the bundle is written.
+        pairs = itertools.chain(
+            arrays.items(),
+            encode_screen("w", x.white.W, x.white.A),
+            encode_screen("c", x.screen.W, x.screen.A),
+        )
+        save_bundle(path, pairs, meta)
 
     @classmethod
     def load(cls, path: str | Path) -> Calibration:
@@ -146,12 +150,17 @@ class Calibration:
         arrays, meta = load_bundle(path, CALIBRATION_ARRAYS)
         try:
             rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
-            g = ScreenGeometry(
-                pos=arrays["geometry.pos"],
-                refl=arrays["geometry.refl"],
-                projector=np.asarray(meta["geometry"]["projector"], np.float64),
-                camera=np.asarray(meta["geometry"]["camera"], np.float64),
-            )
+            # The geometry calibrate used, computed again from the same rig (exactly).
+            g = ScreenGeometry.from_rig(rig)
+            white_w, white_a = decode_screen(arrays, "w")
+            screen_w, screen_a = decode_screen(arrays, "c")
+            for device in ("projector", "camera"):
+                listed = np.asarray(meta["geometry"][device], np.float64)
+                if listed.shape != (3,) or not np.array_equal(listed, getattr(g, device)):
+                    raise ValueError(f"the {device} is at {listed}, its rig says otherwise")
+            for name, m in (("Ww", white_w), ("Aw", white_a), ("Wc", screen_w), ("Ac", screen_a)):
+                if m.shape[:2] != g.pos.shape[:2] or not np.all(np.isfinite(m)):
+                    raise ValueError(f"pixel.{name} decodes to {m.shape} or to non-finite values")
             paper = None
             if "paper" in meta["methods"]:
                 pf = meta["paper_fit"]
@@ -196,8 +205,8 @@ class Calibration:
             pixel = PixelCalibration(
                 geometry=g,
                 f_lut=arrays["pixel.f_lut"],
-                white=ScreenModel(arrays["pixel.Ww"], arrays["pixel.Aw"], measured),
-                screen=ScreenModel(arrays["pixel.Wc"], arrays["pixel.Ac"], measured),
+                white=ScreenModel(white_w, white_a, measured),
+                screen=ScreenModel(screen_w, screen_a, measured),
                 lobe=lobe,
                 response_rms=float(xf["response_rms"]),
                 black_share=arrays["pixel.black_share"],
@@ -207,12 +216,6 @@ class Calibration:
                 f"{path}: the bundle is incomplete or inconsistent ({e!r}): recalibrate with "
                 "`viewcomp calibrate CAPTURE_DIR -o CALIB`"
             ) from e
-        h, w = g.pos.shape[:2]
-        if (w, h) != tuple(rig.projector.resolution):
-            raise BundleError(
-                f"{path}: maps are {w}x{h} but the rig's projector is "
-                f"{rig.projector.resolution[0]}x{rig.projector.resolution[1]}: recalibrate"
-            )
         return cls(rig=rig, paper=paper, pixel=pixel, info=dict(meta.get("info", {})))
 
 
@@ -258,8 +261,10 @@ def calibrate(
     check_captures(cs)
     t0 = time.perf_counter()
     geometry = ScreenGeometry.from_rig(cs.rig)
-    white = {k: v.astype(np.float64) for k, v in cs.white.items()}
-    screen = {k: v.astype(np.float64) for k, v in cs.screen.items()}
+    # The captures as loaded (float32, the capture set's own arrays: no copies, which at
+    # 3840x2160 would be 2.4 GB in float64); the fits' sums and solves run in float64.
+    white = {k: np.asarray(v, np.float32) for k, v in cs.white.items()}
+    screen = {k: np.asarray(v, np.float32) for k, v in cs.screen.items()}
     missing = [k for k in REQUIRED if k not in white or k not in screen]
     if missing:
         raise FitError(f"white|screen/{missing[0]}", "missing from the capture set")
@@ -275,6 +280,7 @@ def calibrate(
     # by the camera exceeds a quarter of the diffuse level) and clipped pixels.
     lobe_cam = pixel.lobe.at(geometry, geometry.camera)
     stat_mask = ~clipped & np.all(lobe_cam <= 0.25 * np.maximum(pixel.lobe.baseline, 1e-6), -1)
+    del lobe_cam
     if np.mean(stat_mask) < 0.5:
         stat_mask = ~clipped
     try:

@@ -90,9 +90,13 @@ class LobeFit:
         return lobe_lookup(self.table, t)
 
     def at(self, geometry: ScreenGeometry, eye: np.ndarray) -> np.ndarray:
-        """The lobe on the grid seen from ``eye``: (H, W, 3) float64."""
+        """The lobe on the grid seen from ``eye``: (H, W, 3) float64 (looked up a block of
+        rows at a time: the lookup's temporaries are several times the result)."""
         t = lobe_position(geometry.refl, geometry.pos, eye, self.half, np.float64)
-        return self.value(t)
+        out = np.empty((*t.shape, 3))
+        for rows in np.array_split(np.arange(t.shape[0]), max(1, t.size >> 18)):
+            out[rows[0] : rows[-1] + 1] = self.value(t[rows[0] : rows[-1] + 1])
+        return out
 
 
 def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
@@ -243,7 +247,9 @@ def fit_lobe(
         ok &= valid
     ok = ok[::step, ::step]
     masked = int(ok.size - np.count_nonzero(ok))
-    y = s[::step, ::step][ok].astype(np.float64)
+    # float32 samples (what the captures hold); the table's medians pick among them and the
+    # comparison fits below run in float64.
+    y = s[::step, ::step][ok].astype(np.float32)
     if y.shape[0] < 50:
         raise FitError(
             "screen/gray",
@@ -253,7 +259,7 @@ def fit_lobe(
     cam = geometry.camera
     # Every residual is measured on the same samples: the pixels with R.V > 0 (where the
     # power law is defined), at most about 20000 of them.
-    rv = np.sum(geometry.refl * _unit(cam - geometry.pos), axis=-1)[::step, ::step][ok]
+    rv = geometry.rv(cam)[::step, ::step][ok]
     pos = np.flatnonzero(rv > 0)
     sub = pos[:: max(1, pos.size // 20000)] if pos.size >= 20 else np.arange(y.shape[0])
     fits = {}
@@ -268,7 +274,7 @@ def fit_lobe(
     other = next(k for k in LOBE_PARAMS if k != chosen)
     table, base, seen, rms = fits[chosen]
     if pos.size >= 20:
-        rms_phong, rms_pl = _phong_rms(rv[sub], y[sub])
+        rms_phong, rms_pl = _phong_rms(rv[sub], y[sub].astype(np.float64))
     else:
         rms_phong = rms_pl = np.full(3, np.nan)
     peak = table.max(axis=0)
@@ -326,7 +332,3 @@ def black_lobe_share(
         x, y = lobe[use], black_ratio[..., c][use] - baseline[c]
         out[c] = float(np.clip(np.dot(x, y) / max(float(np.dot(x, x)), 1e-12), 0.0, 1.0))
     return out
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)

@@ -53,7 +53,8 @@ _DARK_NOISE = 0.01
 
 @dataclass(frozen=True)
 class ScreenModel:
-    """One screen's per-pixel model: W (H, W, 3, 3) and A (H, W, 3), linear camera units."""
+    """One screen's per-pixel model: W (H, W, 3, 3) and A (H, W, 3), float32 linear camera
+    units (the precision the bundle and the runtime keep; the fits' sums run in float64)."""
 
     W: np.ndarray
     A: np.ndarray
@@ -76,6 +77,15 @@ class PixelCalibration:
         """The per-pixel runtime model (docs/RUNTIME.md); the eye is a per-frame uniform."""
         inv, lo, hi = inverse_lut(self.f_lut)
         f32 = np.float32
+
+        def share(a: np.ndarray) -> np.ndarray:
+            """The float32 maps themselves, read-only (no copy: 200 MB at 1080p)."""
+            out = np.asarray(a, f32)
+            if out is a:
+                out = out.view()
+                out.flags.writeable = False
+            return out
+
         return RuntimeModel(
             method="pixel",
             refl=self.geometry.refl.astype(f32),
@@ -85,17 +95,40 @@ class PixelCalibration:
             inv_lut=inv.astype(f32),
             inv_lo=lo.astype(f32),
             inv_hi=hi.astype(f32),
-            Ww=self.white.W.astype(f32),
-            Aw=self.white.A.astype(f32),
-            Wc=self.screen.W.astype(f32),
-            Ac=self.screen.A.astype(f32),
+            Ww=share(self.white.W),
+            Aw=share(self.white.A),
+            Wc=share(self.screen.W),
+            Ac=share(self.screen.A),
             lobe=self.lobe.table.astype(f32),
             lobe_half=self.lobe.half,
             lobe_black=self.black_share.astype(f32),
         )
 
 
+#: Pixels per block of rows in the per-pixel 3x3 algebra: bounds its float64 temporaries to
+#: tens of MB whatever the grid (a 3840x2160 grid is 8.3 M pixels).
+BLOCK_PIXELS = 1 << 18
+
+
+def row_blocks(h: int, w: int) -> list[slice]:
+    """Slices of rows of an (h, w) grid, each about :data:`BLOCK_PIXELS` pixels."""
+    step = max(1, BLOCK_PIXELS // max(w, 1))
+    return [slice(r, min(h, r + step)) for r in range(0, h, step)]
+
+
+def decouple(wt: np.ndarray, x: np.ndarray, minus: np.ndarray) -> np.ndarray:
+    """W~(x)^-1 (x - minus) per pixel: (H, W, 3) float32 from wt (H, W, 3, 3) and x, minus
+    (H, W, 3), inverted in float64 one block of rows at a time (no full-grid temporaries)."""
+    out = np.empty(x.shape, np.float32)
+    for rows in row_blocks(*x.shape[:2]):
+        inv = np.linalg.inv(wt[rows].astype(np.float64))
+        out[rows] = np.einsum("hwij,hwj->hwi", inv, x[rows] - minus[rows])
+    return out
+
+
 def _smooth(img: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian blur over the grid (not across channels), float32 out."""
+    img = np.asarray(img, np.float32)
     if sigma <= 0:
         return img
     return gaussian_filter(img, sigma=(sigma, sigma, 0), mode="nearest")
@@ -116,7 +149,7 @@ def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndar
         )
     except FitError as exc:
         raise FitError(f"{sub}/{exc.capture}", exc.reason) from None
-    wt = np.empty((h, w, 3, 3))
+    wt = np.empty((h, w, 3, 3), np.float32)
     for j, name in enumerate(CHANNEL_PATTERNS):
         d = _smooth(caps[name] - caps["gray"], sigma)
         own = d[..., j]
@@ -157,11 +190,9 @@ def projector_response(white: dict[str, np.ndarray], wt: np.ndarray, amb: np.nda
     Returns:
         (f_lut (256, 3) with f(255) = 1, RMS misfit of the per-level samples (units of f)).
     """
-    inv = np.linalg.inv(wt)
-    num = np.einsum("hwij,hwj->hwi", inv, white["ramp"] - amb)
-    den = np.einsum("hwij,hwj->hwi", inv, white["gray"] - amb)
-    r = num / np.maximum(den, 1e-6)
-    samples = level_means(np.median(r, axis=0))
+    r = decouple(wt, white["ramp"], amb)
+    r /= np.maximum(decouple(wt, white["gray"], amb), 1e-6)
+    samples = level_means(np.median(r, axis=0).astype(np.float64))
     lut = monotone_lut(samples, "white/ramp")
     lut = np.maximum(lut - min(0.0, float(lut[0].min())), 0.0)
     top = lut[-1].copy()
@@ -176,9 +207,8 @@ def screen_model(
     """W(x) = W~(x) diag(D(x)), D from the gray capture, A from black (or estimated)."""
     wt = mixing_tilde(caps, sigma, sub)
     amb, measured = _estimate_ambient(caps, sigma)
-    dec = np.einsum("hwij,hwj->hwi", np.linalg.inv(wt), caps["gray"] - amb)
     f110 = np.array([np.interp(GRAY_LEVEL, np.arange(256), f_lut[:, c]) for c in range(3)])
-    d = dec / f110
+    d = decouple(wt, caps["gray"], amb) / f110.astype(np.float32)
     if np.mean(d <= 0) > 0.01:
         if sub == "white" or np.any(np.median(d, axis=(0, 1)) < -_DARK_NOISE):
             raise FitError(
@@ -189,8 +219,9 @@ def screen_model(
         # A real screen that reflects (almost) nothing in a channel, at an exposure set for
         # its highlight: its gain there is the noise about 0. A small floor keeps the model
         # invertible; the tone map then treats that channel as the dark one it is.
-        d = np.maximum(d, _GAIN_FLOOR * float(np.max(np.median(d, axis=(0, 1)))))
-    return ScreenModel(W=wt * d[..., None, :], A=amb, ambient_measured=measured)
+        d = np.maximum(d, np.float32(_GAIN_FLOOR * float(np.max(np.median(d, axis=(0, 1))))))
+    wt *= d[..., None, :]  # W = W~ diag(D), in place: one (H, W, 3, 3) array at a time
+    return ScreenModel(W=wt, A=amb, ambient_measured=measured)
 
 
 def calibrate_pixel(
@@ -214,6 +245,7 @@ def calibrate_pixel(
     wt_w = mixing_tilde(white, smooth_px, "white")
     amb_w, _ = _estimate_ambient(white, smooth_px)
     f_lut, misfit = projector_response(white, wt_w, amb_w)
+    del wt_w, amb_w  # screen_model fits the white screen's own again; free these first
     wm = screen_model(white, f_lut, smooth_px, "white")
     cm = screen_model(screen, f_lut, smooth_px, "screen")
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)

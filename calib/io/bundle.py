@@ -2,7 +2,7 @@
 
 Layout (a plain zip, inspectable with any unzip tool)::
 
-    meta.json        {"format": "viewcomp-bundle", "schema": 2,
+    meta.json        {"format": "viewcomp-bundle", "schema": 3,
                       "arrays": {name: {"dtype": "<f4", "shape": [h, w, 3]}, ...},
                       "meta": {...the caller's meta...}}
     <name>.npy       one per array, numpy's .npy format (np.lib.format, no pickle)
@@ -20,6 +20,7 @@ import re
 import struct
 import zipfile
 import zlib
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,7 +33,7 @@ from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.npy import MAX_ARRAY_BYTES
 from viewcomp.calib.io.paths import InputFileError, check_input_file
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 FORMAT = "viewcomp-bundle"
 META_MEMBER = "meta.json"
 
@@ -59,42 +60,50 @@ class BundleError(ViewcompError, ValueError):
     """A calibration bundle that cannot be used; the message names file, cause and fix."""
 
 
-def save_bundle(path: str | Path, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
+def save_bundle(
+    path: str | Path,
+    arrays: Mapping[str, np.ndarray] | Iterable[tuple[str, np.ndarray]],
+    meta: dict[str, Any],
+) -> None:
     """Write a calibration bundle at exactly ``path``, atomically.
 
     ``arrays`` maps names (letters, digits, ``_ . -``) to numpy arrays of any shape and
-    non-object dtype; ``meta`` is a JSON-serialisable dict (lists come back as lists, tuples
-    as lists). Parent folders are created. Raises ``ValueError`` for an unsafe name, an object
-    array or meta that JSON cannot hold; nothing is written then.
+    non-object dtype, or yields (name, array) pairs: each array is written as it comes and
+    can be freed before the next is made (a 4K calibration's maps are encoded one at a time).
+    ``meta`` is a JSON-serialisable dict (lists come back as lists, tuples as lists). Parent
+    folders are created. Raises ``ValueError`` for an unsafe or repeated name, an object
+    array or meta that JSON cannot hold; ``path`` is left as it was then.
     """
     p = Path(path)
-    listing: dict[str, dict[str, Any]] = {}
-    checked: dict[str, np.ndarray] = {}
-    for name, arr in arrays.items():
-        if not isinstance(name, str) or not _NAME_RE.match(name):
-            raise ValueError(f"bundle array name {name!r} must be letters, digits, '_', '.', '-'")
-        a = np.asarray(arr)
-        if a.dtype.hasobject:
-            raise ValueError(f"bundle array {name!r} has an object dtype, which needs pickle")
-        checked[name] = a
-        listing[name] = {"dtype": a.dtype.str, "shape": list(a.shape)}
     if not isinstance(meta, dict):
         raise ValueError(f"bundle meta must be a dict, got {type(meta).__name__}")
-    doc = {"format": FORMAT, "schema": SCHEMA_VERSION, "arrays": listing, "meta": meta}
     try:
-        meta_bytes = json.dumps(doc, indent=1, allow_nan=False).encode("utf-8")
+        json.dumps(meta, allow_nan=False)  # before anything is written
     except (TypeError, ValueError) as exc:
         raise ValueError(f"bundle meta is not JSON-serialisable: {exc}") from None
-
+    pairs = arrays.items() if isinstance(arrays, Mapping) else arrays
+    listing: dict[str, dict[str, Any]] = {}
     p.parent.mkdir(parents=True, exist_ok=True)
     with (
         atomic_open(p) as f,
-        zipfile.ZipFile(f, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf,
+        zipfile.ZipFile(f, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=6) as zf,
     ):
-        zf.writestr(META_MEMBER, meta_bytes)
-        for name, a in checked.items():
+        for name, arr in pairs:
+            if not isinstance(name, str) or not _NAME_RE.match(name) or name in listing:
+                raise ValueError(
+                    f"bundle array name {name!r} must be letters, digits, '_', '.', '-', "
+                    "and appear once"
+                )
+            a = np.asarray(arr)
+            if a.dtype.hasobject:
+                raise ValueError(f"bundle array {name!r} has an object dtype, which needs pickle")
+            listing[name] = {"dtype": a.dtype.str, "shape": list(a.shape)}
             with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
                 np.lib.format.write_array(member, a, allow_pickle=False)
+            del a, arr
+        # meta.json last: its listing is of what was written (the loader reads by name).
+        doc = {"format": FORMAT, "schema": SCHEMA_VERSION, "arrays": listing, "meta": meta}
+        zf.writestr(META_MEMBER, json.dumps(doc, indent=1, allow_nan=False).encode("utf-8"))
 
 
 def _fail(p: Path, cause: str, fix: str) -> BundleError:
@@ -118,9 +127,9 @@ class ArrayRule:
 
 # The arrays of a calibration bundle (viewcomp.calib.fit.calibrate.Calibration): one line
 # per array. Arrays without a line get the generic checks only (size cap, finite floats).
+# The per-pixel maps are byte planes of error-bounded integers (viewcomp.calib.io.compact),
+# each with its quantisation steps; the geometry is not stored (the rig gives it).
 CALIBRATION_ARRAYS: dict[str, ArrayRule] = {
-    "geometry.pos": ArrayRule(("H", "W", 3)),
-    "geometry.refl": ArrayRule(("H", "W", 3), low=-1.001, high=1.001),  # unit vectors
     "paper.n": ArrayRule((3,)),
     "paper.means_c": ArrayRule((4, 3)),
     "paper.ramp_cols_c": ArrayRule(("W", 3)),
@@ -130,10 +139,18 @@ CALIBRATION_ARRAYS: dict[str, ArrayRule] = {
     "paper.gamma": ArrayRule((3,)),
     "paper.stat_mask": ArrayRule(("H", "W"), kinds="u", low=0, high=1),
     "pixel.f_lut": ArrayRule((256, 3), low=-0.001, high=1.001),  # normalised response
-    "pixel.Ww": ArrayRule(("H", "W", 3, 3)),
-    "pixel.Aw": ArrayRule(("H", "W", 3)),
-    "pixel.Wc": ArrayRule(("H", "W", 3, 3)),
-    "pixel.Ac": ArrayRule(("H", "W", 3)),
+    "pixel.Ww.gain": ArrayRule((4, "H", "W", 3), kinds="u"),
+    "pixel.Ww.gain_step": ArrayRule((3,)),
+    "pixel.Ww.mix": ArrayRule((4, "H", "W", 6), kinds="u"),
+    "pixel.Ww.mix_step": ArrayRule((6,)),
+    "pixel.Aw": ArrayRule((4, "H", "W", 3), kinds="u"),
+    "pixel.Aw_step": ArrayRule((3,)),
+    "pixel.Wc.gain": ArrayRule((4, "H", "W", 3), kinds="u"),
+    "pixel.Wc.gain_step": ArrayRule((3,)),
+    "pixel.Wc.mix": ArrayRule((4, "H", "W", 6), kinds="u"),
+    "pixel.Wc.mix_step": ArrayRule((6,)),
+    "pixel.Ac": ArrayRule((4, "H", "W", 3), kinds="u"),
+    "pixel.Ac_step": ArrayRule((3,)),
     "pixel.lobe": ArrayRule(("*", 3), low=0.0),  # the tabulated lobe (units of s)
     "pixel.baseline": ArrayRule((3,)),
     "pixel.black_share": ArrayRule((3,), low=0.0, high=1.0),
@@ -365,6 +382,13 @@ def _parse_meta(p: Path, data: bytes) -> dict[str, Any]:
             f"written by a newer viewcomp (schema {schema}); this viewcomp reads schema "
             f"{SCHEMA_VERSION}",
             "upgrade viewcomp or recalibrate",
+        )
+    if schema in (1, 2):  # before the compact per-pixel maps (viewcomp.calib.io.compact)
+        raise _fail(
+            p,
+            f"written by an older viewcomp (schema {schema}, full float32 maps); this "
+            f"viewcomp reads schema {SCHEMA_VERSION}",
+            "run `viewcomp calibrate CAPTURE_DIR -o CALIB` again on its capture set",
         )
     if schema != SCHEMA_VERSION:
         raise _fail(

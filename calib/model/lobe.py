@@ -26,6 +26,9 @@ import numpy as np
 #: Entries of the lobe table: 1024 over t in [0, 1] is a step of ~0.08 degrees near the peak.
 LOBE_N = 1024
 
+#: Pixels per block of rows when :func:`lobe_position` takes a whole grid.
+_BLOCK_PIXELS = 1 << 18
+
 #: The two parametrisations, by name; ``half`` is stored as ``RuntimeModel.lobe_half = True``.
 LOBE_PARAMS = ("half", "mirror")
 
@@ -45,6 +48,16 @@ def lobe_position(
     Returns:
         (...) t in [0, sqrt(2)]: 0 at the mirror direction, 1 at 90 degrees.
     """
+    refl, pos = np.asarray(refl), np.asarray(pos)
+    if refl.ndim == 3 and refl.shape[0] > 1 and refl.size > 3 * _BLOCK_PIXELS:
+        # A whole grid: one block of rows at a time, so the temporaries (several (..., 3)
+        # arrays) stay tens of MB at 3840x2160; the result is the same per pixel.
+        out = np.empty(refl.shape[:-1], dtype)
+        step = max(1, _BLOCK_PIXELS // refl.shape[1])
+        for r0 in range(0, refl.shape[0], step):
+            rows = slice(r0, r0 + step)
+            out[rows] = lobe_position(refl[rows], pos[rows], eye, half, dtype)
+        return out
     r = np.asarray(refl, dtype)
     v = np.asarray(eye, dtype) - np.asarray(pos, dtype)
     v = v / np.linalg.norm(v, axis=-1, keepdims=True)

@@ -12,17 +12,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewcomp.calib.errors import ViewcompError
-from viewcomp.calib.world.rig import Device, Rig
+from viewcomp.calib.world.rig import Device, Rig, unit_rows
 
 NORMAL = np.array([0.0, 0.0, 1.0])
 
 
 class GeometryError(ViewcompError, ValueError):
     """The rig's geometry cannot be used (a pixel misses the screen, a device behind it)."""
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def meet_screen(origin: np.ndarray, rays: np.ndarray, device: str) -> np.ndarray:
@@ -74,7 +70,7 @@ def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
 
 def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:
     """R(x) = 2 (Y.N) N - Y with Y = normalize(P - p) (Eq. 6). (H, W, 3) unit vectors."""
-    y = _unit(np.asarray(projector_position, float) - pos)
+    y = unit_rows(np.asarray(projector_position, float) - pos)
     r = -y
     r[..., 2] = y[..., 2]
     return r
@@ -82,12 +78,23 @@ def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.nd
 
 def view_vectors(pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
     """V(x) = normalize(E - p). (H, W, 3) unit vectors toward the eye."""
-    return _unit(np.asarray(eye, float) - pos)
+    return unit_rows(np.asarray(eye, float) - pos)
 
 
 def r_dot_v(refl: np.ndarray, pos: np.ndarray, eye: np.ndarray) -> np.ndarray:
-    """R.V per pixel, (H, W), in -1..1 (not clamped)."""
-    return np.sum(refl * view_vectors(pos, eye), axis=-1)
+    """R.V per pixel, (H, W) float64, in -1..1 (not clamped).
+
+    Computed a block of about 2^18 pixels of rows at a time: the (H, W, 3) float64
+    temporaries of a whole 3840x2160 grid would be 200 MB each."""
+    refl, pos = np.asarray(refl), np.asarray(pos)
+    if refl.ndim != 3:
+        return np.sum(refl * view_vectors(pos, eye), axis=-1)
+    out = np.empty(refl.shape[:-1])
+    step = max(1, (1 << 18) // max(refl.shape[1], 1))
+    for r0 in range(0, refl.shape[0], step):
+        rows = slice(r0, r0 + step)
+        out[rows] = np.sum(refl[rows] * view_vectors(pos[rows], eye), axis=-1)
+    return out
 
 
 def irradiance_falloff(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:

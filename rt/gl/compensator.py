@@ -83,24 +83,37 @@ def pixel_texels(model: RuntimeModel) -> np.ndarray:
             screen plane, naming it.
     """
     h, w = model.shape
-    out = np.zeros((h, w, MAP_TEXELS, 4), np.float32)
-    for k, (mat, amb) in enumerate((("Ww", "Aw"), ("Wc", "Ac"))):
+    maps = []
+    for mat, amb in (("Ww", "Aw"), ("Wc", "Ac")):
         if getattr(model, mat) is None or getattr(model, amb) is None:
             raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
-        out[:, :, 3 * k : 3 * k + 3, :3] = _f32(getattr(model, mat), (h, w, 3, 3), mat)
-        out[:, :, 3 * k : 3 * k + 3, 3] = _f32(getattr(model, amb), (h, w, 3), amb)
-    out[:, :, 6, :3] = _f32(model.refl, (h, w, 3), "refl")
+        maps += [
+            _f32(getattr(model, mat), (h, w, 3, 3), mat),
+            _f32(getattr(model, amb), (h, w, 3), amb),
+        ]
+    refl = _f32(model.refl, (h, w, 3), "refl")
     pos = _f32(model.pos, (h, w, 3), "pos")
     if np.abs(pos[..., 2]).max(initial=0.0) > 1e-6:
         raise ValueError("pos must lie on the screen plane z = 0 (docs/MODEL.md section 1)")
-    out[:, :, 7, :2] = pos[..., :2]
     _f32(model.cam_eye, (3,), "cam_eye")
     _lobe_table(model)
     lobe = model.cam_lobe
     if not np.all(np.isfinite(lobe)):
         raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and lobe")
-    out[:, :, 6, 3] = lobe[..., 0]
-    out[:, :, 7, 2:] = lobe[..., 1:]
+    out = np.empty((h, w, MAP_TEXELS, 4), np.float32)  # every slot is written below
+    # A block of rows at a time: each block of the 128 bytes a pixel is filled while it is in
+    # the cache (about twice as fast as each slot over the whole grid at 1080p).
+    step = max(1, (1 << 14) // max(w, 1))
+    for r0 in range(0, h, step):
+        rows = slice(r0, r0 + step)
+        o = out[rows]
+        for k in range(2):
+            o[:, :, 3 * k : 3 * k + 3, :3] = maps[2 * k][rows]
+            o[:, :, 3 * k : 3 * k + 3, 3] = maps[2 * k + 1][rows]
+        o[:, :, 6, :3] = refl[rows]
+        o[:, :, 7, :2] = pos[rows, :, :2]
+        o[:, :, 6, 3] = lobe[rows, :, 0]
+        o[:, :, 7, 2:] = lobe[rows, :, 1:]
     return out
 
 
@@ -240,7 +253,8 @@ class Compensator:
 
     def _buffer_texture(self, data: np.ndarray | int, fmt: str) -> BufferTexture:
         """A buffer texture of ``data`` (or of that many bytes, unset), owned by this object."""
-        content = np.ascontiguousarray(data).tobytes() if isinstance(data, np.ndarray) else None
+        # The array itself (buffer protocol), not a bytes copy: 265 MB for 1080p's maps.
+        content = np.ascontiguousarray(data) if isinstance(data, np.ndarray) else None
         reserve = int(data) if content is None else 0
         return self._track(BufferTexture(self.ctx, content, fmt, reserve, self._loader))
 
