@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -151,9 +152,13 @@ class Calibration:
         try:
             rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
             # The geometry calibrate used, computed again from the same rig (exactly).
-            g = ScreenGeometry.from_rig(rig)
-            white_w, white_a = decode_screen(arrays, "w")
-            screen_w, screen_a = decode_screen(arrays, "c")
+            # The two screens' maps decode on a second thread meanwhile (numpy's work there
+            # releases the GIL): the load is on the player's start-up path.
+            with ThreadPoolExecutor(max_workers=2) as pool:
+                white = pool.submit(decode_screen, arrays, "w")
+                screen = pool.submit(decode_screen, arrays, "c")
+                g = ScreenGeometry.from_rig(rig)
+                (white_w, white_a), (screen_w, screen_a) = white.result(), screen.result()
             for device in ("projector", "camera"):
                 listed = np.asarray(meta["geometry"][device], np.float64)
                 if listed.shape != (3,) or not np.array_equal(listed, getattr(g, device)):

@@ -31,8 +31,6 @@ from dataclasses import dataclass
 from itertools import pairwise
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
-from scipy.optimize import least_squares
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.model.lobe import LOBE_N, LOBE_PARAMS, lobe_lookup, lobe_position
@@ -101,6 +99,8 @@ class LobeFit:
 
 def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
     """(table (LOBE_N, 3), baseline (3,), (t_lo, t_hi)) from samples t (n,) and s (n, 3)."""
+    from scipy.ndimage import gaussian_filter1d  # scipy is imported by fits only: loading is faster
+
     n = LOBE_N
     cell = np.clip(np.rint(t * (n - 1)).astype(np.int64), 0, n - 1)
     order = np.argsort(cell, kind="stable")
@@ -162,6 +162,8 @@ def _tail(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     exp(-k t^2) is a Phong lobe's shape ((R.V)^k = (1 - t^2)^k ~ exp(-k t^2)) and a smooth
     tail for any lobe; k >= TAIL_MIN_RATE makes it reach the diffuse level b by 90 degrees.
     """
+    from scipy.optimize import least_squares
+
     lo_level = float(np.min(y))
     outer = (t >= t[0] + 0.5 * (t[-1] - t[0])) | (y - lo_level <= (np.max(y) - lo_level) / 3)
     to, yo = t[outer], y[outer]
@@ -185,6 +187,8 @@ def _tail(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
 def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """RMS residuals (3,) of b + kappa (R.V)^gamma (least squares) and of the paper's power
     law log s = a + gamma log(R.V), both on samples rv (n,) > 0 and s (n, 3)."""
+    from scipy.optimize import least_squares
+
     lx = np.log(np.maximum(rv, 1e-9))
 
     def model(p: np.ndarray) -> np.ndarray:

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import isotonic_regression
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.io.patterns import ramp_levels
@@ -174,6 +173,8 @@ def monotone_lut(samples: np.ndarray, name: str = "ramp") -> np.ndarray:
     Raises:
         FitError: the samples are flat or far from monotone (a reversed or wrong ramp).
     """
+    from scipy.optimize import isotonic_regression  # imported when fitting: loading is faster
+
     out = np.empty_like(samples, dtype=np.float64)
     for ch in range(3):
         y = samples[:, ch]

@@ -28,7 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.fit.lobe import LobeFit, black_lobe_share, fit_lobe
@@ -128,6 +127,8 @@ def decouple(wt: np.ndarray, x: np.ndarray, minus: np.ndarray) -> np.ndarray:
 
 def _smooth(img: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian blur over the grid (not across channels), float32 out."""
+    from scipy.ndimage import gaussian_filter  # imported when fitting: loading is faster
+
     img = np.asarray(img, np.float32)
     if sigma <= 0:
         return img
