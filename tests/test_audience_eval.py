@@ -57,3 +57,18 @@ def test_walk_with_a_wrong_eye_is_worse_than_the_exact_eye():
     out = walk_rows(world, t, truth, off, delay=0, every=3)
     s = out["summary"]["mean"]
     assert s["tracked"] > s["exact"] + 0.1, s
+
+
+def test_run_writes_the_audience_report(tmp_path):
+    """The protocol end to end on one small screen, with a walk: report.json and report.md
+    hold the zones' table and the walk's."""
+    from viewcomp.calib.eval.run import run
+
+    t, truth = _walk(8)
+    rep = run(tmp_path / "r", "audience", size=(48, 24), screens=("magenta",),
+              walk=(t, truth, truth.copy()))  # fmt: skip
+    saved = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert set(saved["zone_summary"]) == {"60:120", "30:90"}
+    assert saved["walk"]["summary"]["frames_judged"] == 2 == rep["walk"]["summary"]["frames_judged"]
+    md = (tmp_path / "r" / "report.md").read_text()
+    assert "| 60:120 | mean |" in md and "Tracked walk" in md

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,20 @@ PROTOCOLS = ("table2", "sweep", "all", "materials", "audience")
 Walk = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
+def _finish(
+    out_dir: str | Path,
+    report: dict[str, Any],
+    t0: float,
+    write: Callable[[Path, dict[str, Any]], None],
+) -> dict[str, Any]:
+    """Stamp the run time (since ``t0``), write the report into ``out_dir``, return it."""
+    report["seconds"] = round(time.perf_counter() - t0, 1)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write(out, report)
+    return report
+
+
 def _run_materials(
     out_dir: str | Path,
     folder: str | Path | None,
@@ -57,11 +71,7 @@ def _run_materials(
     }
     report |= materials_protocol(folder, seed=seed, size=size or MATERIAL_SIZE, angles=angles,
                                  progress=progress)  # fmt: skip
-    report["seconds"] = round(time.perf_counter() - t0, 1)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_materials_report(out, report)
-    return report
+    return _finish(out_dir, report, t0, write_materials_report)
 
 
 def _run_audience(
@@ -104,11 +114,7 @@ def _run_audience(
     report["zone_summary"] = zone_summary(rows)
     if walk is not None:
         report["walk"] = walk_rows(world, *walk, progress=progress)
-    report["seconds"] = round(time.perf_counter() - t0, 1)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_audience_report(out, report)
-    return report
+    return _finish(out_dir, report, t0, write_audience_report)
 
 
 def run(
@@ -169,8 +175,4 @@ def run(
         report["sweep_mean_de"] = means
         report["sweep_checks"] = check_sweep(means)
         report["sweep_gap_closed_de"] = gap_closed(rows, "de")
-    report["seconds"] = round(time.perf_counter() - t0, 1)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_report(out, report, world, keep)
-    return report
+    return _finish(out_dir, report, t0, lambda out, rep: write_report(out, rep, world, keep))
