@@ -6,6 +6,7 @@ import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -96,12 +97,19 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
                           text=True, timeout=300)  # fmt: skip
 
 
-def test_cli_preview_image_and_video(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def magenta(tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Path]:
+    """A simulated glossy magenta screen's calibration at 64x32 and its saved bundle."""
+    cal = small_calibration(64, 32, screen="magenta")
+    bundle = tmp_path_factory.mktemp("preview") / "screen.vcb"
+    cal.save(bundle)
+    return cal, bundle
+
+
+def test_cli_preview_image_and_video(tmp_path: Path, magenta: tuple[Any, Path]) -> None:
     from viewcomp.rt.testing import make_test_video
 
-    cal = small_calibration(64, 32, screen="magenta")
-    bundle = tmp_path / "screen.vcb"
-    cal.save(bundle)
+    _, bundle = magenta
     photo = tmp_path / "photo.png"
     write_png(photo, natural_images(128, 64)["astronaut"])
     out = tmp_path / "seen.png"
@@ -125,16 +133,14 @@ def test_cli_preview_image_and_video(tmp_path: Path) -> None:
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
 
 
-def test_audience_preview_one_row_per_viewer(tmp_path: Path) -> None:
+def test_audience_preview_one_row_per_viewer(tmp_path: Path, magenta: tuple[Any, Path]) -> None:
     """--audience: one row per viewer, each what that viewer sees of the audience's
     compensation, and the printed error is their mean. (Whether the audience's image beats
     another is a property of the scene: `evaluate --protocol audience` measures it.)"""
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.world.audience import zone
 
-    cal = small_calibration(64, 32, screen="magenta")
-    bundle = tmp_path / "screen.vcb"
-    cal.save(bundle)
+    cal, bundle = magenta
     photo = tmp_path / "photo.png"
     write_png(photo, natural_images(64, 32)["coffee"])
     out = tmp_path / "seen.png"

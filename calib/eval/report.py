@@ -203,8 +203,6 @@ def _fmt_means(means: dict[str, dict[str, float]]) -> str:
 
 def write_report(out: Path, report: dict[str, Any], world: World, keep: dict[str, Any]) -> None:
     """report.json, report.md and the plots into ``out``."""
-    from viewcomp.calib.eval.evaluate import dumps
-
     md = ["# viewcomp evaluation (the paper's Section 5, in simulation)", ""]
     cfg = report["config"]
     md += [
@@ -252,14 +250,11 @@ def write_report(out: Path, report: dict[str, Any], world: World, keep: dict[str
     report["tone_tradeoff"] = plot_tradeoff(world, out / "tonemap_tradeoff.png")
     md += ["## Tone map trade-off", "", "![](tonemap_tradeoff.png)", ""]
     md += [f"Run time: {report['seconds']} s.", ""]
-    write_text_atomic(out / "report.json", dumps(report))
-    write_text_atomic(out / "report.md", "\n".join(md))
+    _write_files(out, report, md)
 
 
 def write_materials_report(out: Path, report: dict[str, Any]) -> None:
     """report.json and report.md of the materials protocol into ``out``."""
-    from viewcomp.calib.eval.evaluate import dumps
-
     cfg = report["config"]
     md = [
         "# viewcomp evaluation on measured materials",
@@ -313,14 +308,11 @@ def write_materials_report(out: Path, report: dict[str, Any]) -> None:
     md += ["", "Criteria over the glossy materials (peak >= 10 x diffuse):", "", "```",
            json.dumps(report["materials_checks"], indent=1), "```", "",
            f"Run time: {report['seconds']} s.", ""]  # fmt: skip
-    write_text_atomic(out / "report.json", dumps(report))
-    write_text_atomic(out / "report.md", "\n".join(md))
+    _write_files(out, report, md)
 
 
 def write_audience_report(out: Path, report: dict[str, Any]) -> None:
     """report.json and report.md of the audience protocol into ``out``."""
-    from viewcomp.calib.eval.evaluate import dumps
-
     cfg = report["config"]
     md = [
         "# viewcomp evaluation: several viewers at once, and a tracked viewer",
@@ -369,5 +361,12 @@ def write_audience_report(out: Path, report: dict[str, Any]) -> None:
             )
         md.append("")
     md += [f"Run time: {report['seconds']} s.", ""]
+    _write_files(out, report, md)
+
+
+def _write_files(out: Path, report: dict[str, Any], md: list[str]) -> None:
+    """report.json (finite floats only) and report.md (the lines ``md``) into ``out``."""
+    from viewcomp.calib.eval.evaluate import dumps
+
     write_text_atomic(out / "report.json", dumps(report))
     write_text_atomic(out / "report.md", "\n".join(md))
