@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from viewcomp.calib.fit.calibrate import calibrate
+from viewcomp.calib.hw.bracket import Bracket, exposure_value, relative_exposure
 from viewcomp.calib.hw.devices import DeviceError, OpenCVCamera
-from viewcomp.calib.hw.procedure import Bracket, exposure_value, relative_exposure
 from viewcomp.calib.io.captureset import read_capture_set
 from viewcomp.calib.io.hdr import CLIP_CODE, DEFAULT_STOPS, merge_exposures
 from viewcomp.calib.io.patterns import table1_patterns

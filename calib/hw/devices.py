@@ -22,14 +22,10 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from viewcomp.calib.io.imageio import CaptureError
+from viewcomp.calib.hw.interface import DeviceError
 
 if TYPE_CHECKING:
     from viewcomp.calib.sim.simulator import Screen, Simulator
-
-
-class DeviceError(CaptureError):
-    """A projector or camera that cannot be opened or used; the message says what to do."""
 
 
 class Projector(Protocol):

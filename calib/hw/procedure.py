@@ -33,7 +33,6 @@ and unattended runs (``--yes``) answer them.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -41,24 +40,21 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.geo.checks import MIN_PEAK, MOVE_LIMIT_PX, frame_shift
-from viewcomp.calib.geo.chessboard import find_corners
-from viewcomp.calib.hw.devices import Camera, DeviceError, Projector
+from viewcomp.calib.hw.bracket import Bracket
+from viewcomp.calib.hw.devices import Camera, Projector
+from viewcomp.calib.hw.livechecks import LiveChecks
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
-from viewcomp.calib.io.checks import DARK_LIMIT, SATURATION_LIMIT, check_captures
-from viewcomp.calib.io.hdr import check_stops, merge_exposures
-from viewcomp.calib.io.imageio import CaptureError, to_linear
+from viewcomp.calib.io.checks import check_captures
+from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.io.patterns import table1_patterns
 from viewcomp.calib.sim.simcamera import geometric_patterns
-from viewcomp.calib.world.response import Response, parse_response
+from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import CaptureSpec, Rig, default_rig, rig_to_toml
 
 Prompt = Callable[[str, str], bool]
 Log = Callable[[str], None]
 
-VISIBLE_LIMIT = 0.01  # linear: gray - black must exceed this to count as lit
-MIN_LIT_FRACTION = 0.005  # of the camera image
 
 STAGE_MESSAGES = {
     "white": (
@@ -130,211 +126,6 @@ def _check_writable(out: Path) -> None:
             f"refusing to write a capture set into {out}: the folder is not empty and has no "
             f"{RIG_FILE} - choose a new or empty folder"
         )
-
-
-class LiveChecks:
-    """The checks run on each capture as it arrives (see the module doc).
-
-    ``response`` linearises the camera's codes; ``projector_size`` (W, H) places the
-    chessboard's corners.
-    """
-
-    def __init__(self, response: Response, projector_size: tuple[int, int]) -> None:
-        self.response = response
-        self.projector_size = projector_size
-        self.black: dict[str, np.ndarray] = {}
-        self.gray: dict[str, np.ndarray] = {}
-        self.lit: dict[str, np.ndarray] = {}
-        self.corners: dict[str, np.ndarray] = {}
-        self.pending: dict[str, np.ndarray] = {}
-
-    def linear(self, raw: np.ndarray) -> np.ndarray:
-        """(H, W, 3) codes -> float32 linear 0..1."""
-        return to_linear(raw, self.response)
-
-    def _clipped_fraction(self, sub: str, at_top: np.ndarray) -> float:
-        """Fraction of the lit pixels (all before ``sub``'s gray) with a channel at the top:
-        ``at_top`` (H, W, 3) bool."""
-        mask = self.lit.get(sub)
-        hit = np.any(at_top, axis=2) if mask is None else at_top[mask]
-        return float(np.count_nonzero(hit)) / max(hit.size, 1)
-
-    def check(self, sub: str, name: str, raw: np.ndarray) -> None:
-        """Check one capture; raises CaptureError naming it and the fix."""
-        rel = f"{sub}/{name}"
-        if raw.ndim != 3 or raw.shape[2] != 3 or raw.dtype not in (np.uint8, np.uint16):
-            raise CaptureError(f"{rel}: the camera returned {raw.shape} {raw.dtype}, not RGB")
-        top = 255 if raw.dtype == np.uint8 else 65535
-        frac = self._clipped_fraction(sub, raw >= top)
-        if frac > SATURATION_LIMIT:
-            raise CaptureError(
-                f"{rel}: {frac:.1%} of the lit pixels are at the maximum code (saturated): "
-                "lower the camera's exposure (--exposure) or the projector's brightness, or "
-                "capture with --hdr, and capture again"
-            )
-        self.check_linear(sub, name, self.linear(raw))
-
-    def check_merged(self, sub: str, name: str, lin: np.ndarray, clipped: np.ndarray) -> None:
-        """Check one HDR capture: ``lin`` (H, W, 3) float32 merged linear light, ``clipped``
-        (H, W, 3) bool the pixel-channels clipped in every frame of the bracket."""
-        rel = f"{sub}/{name}"
-        frac = self._clipped_fraction(sub, clipped)
-        if frac > SATURATION_LIMIT:
-            raise CaptureError(
-                f"{rel}: {frac:.1%} of the lit pixels are clipped even in the bracket's shortest "
-                "exposure: lower the camera's exposure (--exposure) and capture again"
-            )
-        self.check_linear(sub, name, lin)
-
-    def check_linear(self, sub: str, name: str, lin: np.ndarray) -> None:
-        """The checks of :meth:`check` after saturation, on the linear capture (H, W, 3)."""
-        rel = f"{sub}/{name}"
-        if name == "black":
-            self.black[sub] = lin
-            return
-        if name == "gray":
-            self._first_gray(sub, rel, lin)
-            return
-        if sub not in self.gray:
-            raise CaptureError(f"{rel}: captured before {sub}/gray; use capture_plan's order")
-        if name in ("red", "green", "blue"):
-            self._colour(sub, rel, name, lin)
-        if name == "chessboard":
-            self._chessboard(sub, rel, lin)
-        if name.startswith("graycode_") and name[9:].isdigit():
-            k = int(name[9:])
-            if k % 2 == 0:
-                self.pending[sub] = lin
-                return
-            lin = lin + self.pending.pop(sub, np.zeros_like(lin))  # a plane + its inverse
-        if name != "graycode_black":
-            self.moved(sub, rel, lin)
-
-    def _first_gray(self, sub: str, rel: str, lin: np.ndarray) -> None:
-        black = self.black.get(sub, np.zeros_like(lin))
-        diff = (lin - black).mean(axis=2)
-        peak = float(np.percentile(diff, 99.5))
-        lit = diff > max(VISIBLE_LIMIT, 0.3 * peak)
-        if peak < VISIBLE_LIMIT or lit.mean() < MIN_LIT_FRACTION:
-            raise CaptureError(
-                f"{rel}: the projected image is not visible to the camera (gray is at most "
-                f"{peak:.3f} above black, lit area {lit.mean():.2%} of the frame): check that "
-                "the window is on the projector (--monitor, see --list-monitors), that the "
-                "camera sees the screen, and the exposure"
-            )
-        level = float(lin[lit].mean())
-        if level < DARK_LIMIT:
-            raise CaptureError(
-                f"{rel}: too dark (mean linear level {level:.4f} where the projector lights): "
-                "raise the camera's exposure or darken the room, and capture again"
-            )
-        self.gray[sub] = lin
-        self.lit[sub] = lit
-
-    def _colour(self, sub: str, rel: str, name: str, lin: np.ndarray) -> None:
-        c = ("red", "green", "blue").index(name)
-        d = (lin - self.gray[sub])[self.lit[sub]].mean(axis=0)
-        if d[c] <= 0 or d[c] <= max(d[(c + 1) % 3], d[(c + 2) % 3]):
-            raise CaptureError(
-                f"{rel}: the {name} pattern does not raise the camera's {name} channel most "
-                f"(change over gray R,G,B = {d[0]:+.4f}, {d[1]:+.4f}, {d[2]:+.4f}): check the "
-                "projector's colour mode and that the window is on the projector"
-            )
-
-    def _chessboard(self, sub: str, rel: str, lin: np.ndarray) -> None:
-        corners = find_corners(lin, self.projector_size, rel).camera
-        self.corners[sub] = corners
-        if sub == "screen" and "white" in self.corners:
-            shift = float(np.sqrt(np.mean(np.sum((corners - self.corners["white"]) ** 2, 1))))
-            if shift > MOVE_LIMIT_PX:
-                raise CaptureError(
-                    f"{rel}: the chessboard lies {shift:.1f} camera px from where it was on the "
-                    "white screen: the camera moved, or the real screen is not where the white "
-                    "one was; put it in the same place, fix the camera, and capture again"
-                )
-
-    def moved(self, sub: str, rel: str, lin: np.ndarray) -> None:
-        """Refuse a capture whose frame edges moved from the stage's first gray capture."""
-        d, peak = frame_shift(self.gray[sub], lin)
-        if peak < MIN_PEAK:
-            raise CaptureError(
-                f"{rel}: the projector's frame is not where {sub}/gray has it (no clear match): "
-                "the camera moved a lot, or the projector stopped showing; fix the camera and "
-                "capture again"
-            )
-        if d > MOVE_LIMIT_PX:
-            raise CaptureError(
-                f"{rel}: the projector's frame moved {d:.1f} camera px since {sub}/gray: the "
-                "camera moved (or was bumped); fix it, lock zoom and focus, and capture again"
-            )
-
-
-def relative_exposure(base: float, value: float) -> float:
-    """An exposure ``value`` relative to ``base``, both in the driver's units: linear (V4L2's
-    100 us steps, the simulated camera's gain) when ``base`` > 0; log2 of seconds (DirectShow,
-    MSMF: -13 .. 0) when ``base`` <= 0."""
-    return value / base if base > 0 else 2.0 ** (value - base)
-
-
-def exposure_value(base: float, relative: float) -> float:
-    """The driver value that is ``relative`` times ``base`` (the inverse of
-    :func:`relative_exposure`)."""
-    return base * relative if base > 0 else base + math.log2(relative)
-
-
-class Bracket:
-    """HDR captures: each one the camera's frames at every relative exposure of ``stops``
-    (set through :meth:`Camera.set_exposure`, read back as the camera reports it), merged
-    by :func:`~viewcomp.calib.io.hdr.merge_exposures` into float32 linear light in units of
-    the camera's exposure when the bracket starts (its base, restored after each capture).
-
-    Raises (at construction or :meth:`grab`): DeviceError when the camera's exposure cannot
-    be set or does not change.
-    """
-
-    def __init__(
-        self, camera: Camera, stops: tuple[float, ...], response: Response, log: Log
-    ) -> None:
-        self.camera = camera
-        self.stops = check_stops(stops)
-        self.response = response
-        self.log = log
-        self.base = camera.get_exposure()
-        self.reported: tuple[float, ...] | None = None
-
-    def grab(self, frames: int) -> tuple[np.ndarray, np.ndarray]:
-        """One merged capture: ((H, W, 3) float32 linear, (H, W, 3) bool clipped in every
-        frame). Frames whose read-back exposure repeats an earlier one are dropped (a driver
-        at the end of its range)."""
-        raws: list[np.ndarray] = []
-        rels: list[float] = []
-        try:
-            for s in self.stops:
-                got = relative_exposure(
-                    self.base, self.camera.set_exposure(exposure_value(self.base, s))
-                )
-                if not (math.isfinite(got) and got > 0) or any(
-                    abs(got - r) <= 1e-6 * r for r in rels
-                ):
-                    continue
-                raws.append(self.camera.grab(frames))
-                rels.append(got)
-        finally:
-            self.camera.set_exposure(self.base)
-        if len(rels) < 2:
-            raise DeviceError(
-                f"the camera does not change its exposure (asked for {len(self.stops)} relative "
-                f"exposures from {self.base:g}, it reports the same): --hdr needs a camera whose "
-                "exposure can be set; capture without --hdr"
-            )
-        if self.reported is None:
-            self.reported = tuple(rels)
-            self.log(
-                "HDR bracket: relative exposures "
-                + ", ".join(f"1/{1 / r:.4g}" if r < 1 else f"{r:.4g}" for r in rels)
-                + f" of {self.base:g} (as the camera reports them)"
-            )
-        return merge_exposures(raws, rels, self.response)
 
 
 NO_TERMINAL = (
