@@ -19,7 +19,8 @@ import pytest
 from viewcomp.calib.fit.calibrate import Calibration
 from viewcomp.calib.hw import devices
 from viewcomp.calib.hw.devices import OpenCVCamera, SimulatedRig, average_frames
-from viewcomp.calib.hw.procedure import capture_plan, console_prompt, run_capture
+from viewcomp.calib.hw.plan import capture_plan
+from viewcomp.calib.hw.procedure import console_prompt, run_capture
 from viewcomp.calib.io.captureset import read_capture_set
 from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.sim.simcamera import scaled_camera_rig, written_rig

@@ -6,4 +6,5 @@
   out.
 - ``livechecks``: the checks run on each capture as it arrives.
 - ``bracket``: HDR brackets through the camera's exposure control.
+- ``plan``: every pattern of a camera-space capture, in order.
 """

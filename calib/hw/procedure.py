@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -43,12 +43,11 @@ import numpy as np
 from viewcomp.calib.hw.bracket import Bracket
 from viewcomp.calib.hw.devices import Camera, Projector
 from viewcomp.calib.hw.livechecks import LiveChecks
+from viewcomp.calib.hw.plan import Step, capture_plan
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import check_captures
 from viewcomp.calib.io.imageio import CaptureError
-from viewcomp.calib.io.patterns import table1_patterns
-from viewcomp.calib.sim.simcamera import geometric_patterns
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import CaptureSpec, Rig, default_rig, rig_to_toml
 
@@ -66,7 +65,6 @@ STAGE_MESSAGES = {
         "move the camera or the projector."
     ),
 }
-TABLE1_ORDER = ("black", "gray", "red", "green", "blue", "ramp")
 
 COMPLETE_HEADER = """\
 # TO COMPLETE: `viewcomp capture` measured the resolutions only. Measure and enter the
@@ -75,27 +73,6 @@ COMPLETE_HEADER = """\
 # camera's response, then run `viewcomp calibrate`. The lens distortion is estimated by
 # calibrate.
 """
-
-
-@dataclass(frozen=True)
-class Step:
-    """One capture: the folder (``"white"`` or ``"screen"``), its name and the (H, W, 3) uint8
-    pattern to show."""
-
-    sub: str
-    name: str
-    pattern: np.ndarray
-
-
-def capture_plan(width: int, height: int) -> list[Step]:
-    """Every capture of a camera-space set, in order, for a width x height projector."""
-    t1 = table1_patterns(width, height)
-    geo = geometric_patterns(width, height)
-    steps = [Step("white", n, t1[n]) for n in TABLE1_ORDER]
-    steps.append(Step("white", "chessboard", geo["chessboard"]))
-    steps += [Step("screen", n, t1[n]) for n in TABLE1_ORDER]
-    steps += [Step("screen", n, p) for n, p in geo.items()]
-    return steps
 
 
 def capture_rig(
