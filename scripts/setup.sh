@@ -1,8 +1,30 @@
 #!/usr/bin/env bash
 # Set up viewcomp on Debian 12: system packages (only those missing), a .venv with
-# Python >= 3.11, and `pip install -e ".[test]"`. Safe to run again: it only does what is
-# missing. Run as root, or as a user who may use sudo (for apt-get).
+# Python >= 3.11, and viewcomp installed into it with the versions of constraints.txt (the
+# ones the tests passed with). Safe to run again: it only does what is missing. Run as root,
+# or as a user who may use sudo (for apt-get).
+#
+#   bash scripts/setup.sh            development: `pip install -e ".[test]"` (pytest, ruff, mypy)
+#   bash scripts/setup.sh --runtime  a kiosk: viewcomp alone, no test tools, no Xvfb
+#
+# APT_LOCK_WAIT (seconds, default 300) bounds the wait for the apt/dpkg lock that another
+# process (unattended-upgrades on a fresh machine, say) may hold.
 set -euo pipefail
+
+MODE=dev
+for arg in "$@"; do
+  case "$arg" in
+    --runtime) MODE=runtime ;;
+    -h | --help)
+      sed -n '2,13p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+      exit 0
+      ;;
+    *)
+      printf 'setup: error: unknown option %s (use --runtime, or nothing)\n' "$arg" >&2
+      exit 2
+      ;;
+  esac
+done
 
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 ROOT="$(pwd)"
@@ -10,16 +32,9 @@ VENV="$ROOT/.venv"
 
 say() { printf 'setup: %s\n' "$*"; }
 die() { printf 'setup: error: %s\n' "$*" >&2; exit 1; }
+# shellcheck source=scripts/apt_get.sh
+. "$ROOT/scripts/apt_get.sh"
 
-as_root() {
-  if [ "$(id -u)" -eq 0 ]; then
-    "$@"
-  elif command -v sudo >/dev/null 2>&1; then
-    sudo "$@"
-  else
-    die "need root for: $* (run this script as root or install sudo)"
-  fi
-}
 
 is_installed() {
   [ "$(dpkg-query -W -f='${db:Status-Status}' "$1" 2>/dev/null || true)" = "installed" ]
@@ -28,7 +43,8 @@ is_installed() {
 # --- Debian packages -----------------------------------------------------------------------
 # EGL/GL + Mesa (llvmpipe) for headless rendering, Xvfb for windowed tests, ffmpeg for video,
 # mpv for the `export-mpv` user shader's test in a real player.
-PACKAGES=(libegl1 libgl1 libgl1-mesa-dri xvfb ffmpeg mpv)
+PACKAGES=(libegl1 libgl1 libgl1-mesa-dri ffmpeg mpv)
+[ "$MODE" = dev ] && PACKAGES+=(xvfb)
 
 find_python() {
   local candidate
@@ -58,9 +74,8 @@ if command -v dpkg-query >/dev/null 2>&1; then
   done
   if [ "${#MISSING[@]}" -gt 0 ]; then
     say "installing Debian packages: ${MISSING[*]}"
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get update -qq
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
-      "${MISSING[@]}"
+    apt_get update -qq
+    apt_get install -y -q --no-install-recommends "${MISSING[@]}"
   else
     say "Debian packages present: ${PACKAGES[*]}"
   fi
@@ -80,16 +95,28 @@ fi
   die "$VENV has Python $("$VENV/bin/python" --version 2>&1); viewcomp needs >= 3.11 (delete .venv and rerun)"
 
 # --- viewcomp itself -----------------------------------------------------------------------
-# Reinstall only when pyproject.toml changed since the last successful install (or the
-# package or the test tools are not importable).
+# Reinstall only when pyproject.toml or constraints.txt changed since the last successful
+# install of this mode (or the package is not importable).
 STAMP="$VENV/.viewcomp-install-stamp"
-WANT="$(sha256sum pyproject.toml | cut -d' ' -f1)"
-if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] &&
-  "$VENV/bin/python" -c 'import viewcomp, pytest' 2>/dev/null && [ -x "$VENV/bin/ruff" ]; then
-  say "viewcomp already installed (pyproject.toml unchanged)"
+WANT="$MODE $(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1)"
+PIP=("$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -c constraints.txt)
+if [ "$MODE" = dev ]; then
+  CHECK='import viewcomp, pytest, mypy'
 else
-  say 'installing viewcomp: pip install -e ".[test]"'
-  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e ".[test]"
+  CHECK='import viewcomp'
+fi
+if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] && "$VENV/bin/python" -c "$CHECK" 2>/dev/null; then
+  say "viewcomp already installed ($MODE; pyproject.toml and constraints.txt unchanged)"
+elif [ "$MODE" = dev ]; then
+  say 'installing viewcomp: pip install -e ".[test]" -c constraints.txt'
+  "${PIP[@]}" -e ".[test]"
+  echo "$WANT" >"$STAMP"
+else
+  say 'installing viewcomp for running only: pip install . -c constraints.txt (no test tools)'
+  "${PIP[@]}" .
+  if "$VENV/bin/python" -c 'import pytest' 2>/dev/null; then
+    say "note: $VENV also holds test tools from a development set-up; a kiosk needs a fresh clone"
+  fi
   echo "$WANT" >"$STAMP"
 fi
 say "done"
