@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
             rows.append(labelled_row(small, heads))
         log(f"compensated {iname} for angles {', '.join(map(str, DEMO_ANGLES))}")
     body = np.concatenate(rows, axis=0)
-    title = (f"what a viewer sees on the simulated glossy {args.screen} screen at each angle "
+    title = (f"what a viewer sees on the simulated glossy {name} screen at each angle "
              "(dE: mean CIEDE2000 vs the white screen, lower is better)")  # fmt: skip
     grid = np.concatenate([band(body.shape[1], [title]), body], axis=0)
     picture = out / "demo.png"
@@ -97,7 +97,17 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nside-by-side picture (what a viewer sees at each angle): {picture.resolve()}")
     if not args.no_video:
         _video(out, cal, sim, screen, images, log)
+    else:
+        # a demo folder holds one run: videos of an earlier run would not match this picture
+        for old in VIDEO_OUTPUTS:
+            if (out / old).is_file():
+                (out / old).unlink()
+                log(f"removed {out / old} of an earlier run (--no-video)")
     return 0
+
+
+#: The files the video part of the demo writes into its folder.
+VIDEO_OUTPUTS = ("clip.mp4", "walk.csv", "clip-compensated.mp4", "viewer.mp4")
 
 
 def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
