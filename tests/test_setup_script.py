@@ -1,6 +1,6 @@
-"""scripts/apt_get.sh, the apt-get of scripts/setup.sh: it waits (bounded) while another process
-holds apt's and dpkg's locks, as unattended upgrades do on a fresh machine, instead of failing
-at once with apt's exit 100."""
+"""scripts/setup.sh: its apt-get waits (bounded) while another process holds apt's and dpkg's
+locks, as unattended upgrades do on a fresh machine, instead of failing at once with apt's
+exit 100; `--runtime` installs viewcomp without the test tools (a kiosk)."""
 
 from __future__ import annotations
 
@@ -28,13 +28,11 @@ print("holding", flush=True)
 time.sleep(float(sys.argv[1]))
 """
 
-pytestmark = [
-    pytest.mark.slow,
-    pytest.mark.skipif(
-        shutil.which("apt-get") is None or os.geteuid() != 0,
-        reason="needs Debian's apt-get and root (to take apt's locks)",
-    ),
-]
+pytestmark = pytest.mark.slow
+needs_apt = pytest.mark.skipif(
+    shutil.which("apt-get") is None or os.geteuid() != 0,
+    reason="needs Debian's apt-get and root (to take apt's locks)",
+)
 
 
 def _hold(seconds: float) -> subprocess.Popen[str]:
@@ -63,6 +61,7 @@ def _installed_package() -> str:
     pytest.skip("none of ffmpeg, libegl1, bash is installed")
 
 
+@needs_apt
 def test_apt_get_waits_for_a_held_lock() -> None:
     pkg = _installed_package()
     holder = _hold(6.0)
@@ -83,6 +82,7 @@ def test_apt_get_waits_for_a_held_lock() -> None:
     assert waited >= 4.0, f"finished after {waited:.1f} s although the lock was held for 6 s"
 
 
+@needs_apt
 def test_apt_get_gives_up_after_the_bound_with_a_reason() -> None:
     pkg = _installed_package()
     holder = _hold(30.0)
@@ -98,3 +98,25 @@ def test_apt_get_gives_up_after_the_bound_with_a_reason() -> None:
         _release(holder)
     assert out.returncode != 0
     assert "still locked after 2 s" in out.stderr and "APT_LOCK_WAIT" in out.stderr
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="needs git to clone the repository")
+def test_runtime_setup_installs_viewcomp_without_test_tools(tmp_path: Path) -> None:
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout: nothing to clone")
+    clone = tmp_path / "kiosk"
+    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True, timeout=120)
+    out = subprocess.run(
+        ["bash", "scripts/setup.sh", "--runtime"],
+        cwd=clone,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
+    py = clone / ".venv/bin/python"
+    assert subprocess.run([str(py), "-c", "import viewcomp.cli"], timeout=120).returncode == 0
+    for tool in ("pytest", "ruff", "mypy"):
+        found = subprocess.run([str(py), "-c", f"import {tool}"], capture_output=True, timeout=60)
+        assert found.returncode != 0, f"a runtime-only set-up installed {tool}"
+    assert not (clone / ".venv/bin/pytest").exists()
