@@ -115,8 +115,12 @@ def test_runtime_setup_installs_viewcomp_without_test_tools(tmp_path: Path) -> N
     )
     assert out.returncode == 0, out.stdout + out.stderr
     py = clone / ".venv/bin/python"
-    assert subprocess.run([str(py), "-c", "import viewcomp.cli"], timeout=120).returncode == 0
+    # run from outside any checkout: `python -c` puts the working folder first on sys.path
+    ok = subprocess.run([str(py), "-c", "import viewcomp.cli"], cwd=tmp_path, timeout=120)
+    assert ok.returncode == 0
     for tool in ("pytest", "ruff", "mypy"):
-        found = subprocess.run([str(py), "-c", f"import {tool}"], capture_output=True, timeout=60)
+        found = subprocess.run(
+            [str(py), "-c", f"import {tool}"], cwd=tmp_path, capture_output=True, timeout=60
+        )
         assert found.returncode != 0, f"a runtime-only set-up installed {tool}"
     assert not (clone / ".venv/bin/pytest").exists()
