@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -161,3 +162,29 @@ def test_audience_preview_one_row_per_viewer(tmp_path: Path, magenta: tuple[Any,
     )
     assert not np.array_equal(seen[0].compensated, seen[2].compensated)  # seats differ
     assert all(np.array_equal(p.projected, seen[0].projected) for p in seen)  # one image
+
+
+def test_an_underexposed_calibration_never_previews_better(tmp_path: Path) -> None:
+    """The same screen calibrated from captures at 0.15 of the default exposure: the preview,
+    on the absolute scale (the white screen at full output at REFERENCE_WHITE), reports a
+    larger error than the well-exposed calibration's, not a smaller one (in the camera's own
+    units it reported 8.5 against 14.7)."""
+    errors = {}
+    for name, extra in (("dim", ["--exposure", "0.15"]), ("good", [])):
+        caps, bundle, pic = tmp_path / name, tmp_path / f"{name}.vcb", tmp_path / f"{name}.png"
+        for args in (
+            ["simulate", str(caps), "--screen", "magenta", "--gloss", "glossy",
+             "--size", "160x80", *extra],
+            ["calibrate", str(caps), "-o", str(bundle)],
+        ):  # fmt: skip
+            done = _cli(*args)
+            assert done.returncode == 0, done.stderr
+        image = natural_images(160, 80)["astronaut"]
+        src = tmp_path / "astronaut.png"
+        write_png(src, image)
+        done = _cli("preview", str(bundle), str(src), "-o", str(pic), "--angle", "60")
+        assert done.returncode == 0, done.stderr
+        errors[name] = float(re.search(r"compensated \(per-pixel method\) dE ([0-9.]+)",
+                                       done.stdout).group(1))  # fmt: skip
+    print(f"\npredicted dE at 60 degrees: under-exposed {errors['dim']}, well {errors['good']}")
+    assert errors["dim"] > errors["good"]

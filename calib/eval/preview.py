@@ -7,6 +7,13 @@ viewer at an eye position sees of one image on the calibrated surface: the white
 camera would record it (its response from rig.toml, 8-bit), with the colour error of each
 against the white screen (mean CIEDE2000, :func:`viewcomp.calib.eval.metrics.delta_e2000`).
 
+All three are on one absolute scale: linear light is scaled so that the white screen at the
+projector's full output (its 99th percentile over the frame, mean of the channels) lands at
+:data:`REFERENCE_WHITE`, whatever the calibration camera's exposure was. In the camera's own
+units an under-exposed calibration would compare dark pictures with a dark target, where
+CIELAB's differences shrink and the noise it measured hides: a worse calibration would
+report a smaller error. On the absolute scale it reports a larger one.
+
 Labels are white text on a dark band above each column, so they read on any picture.
 """
 
@@ -20,10 +27,15 @@ from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.fit.calibrate import Calibration
 from viewcomp.calib.model.reference import View, predict_view, white_response
+from viewcomp.calib.model.runtime import RuntimeModel
 
 BAND = (24, 24, 24)  # RGB of the label bands
 TEXT = (255, 255, 255)
 METHOD_NAMES = {"pixel": "per-pixel method", "paper": "paper's method"}
+#: Linear level (0..1) at which the white screen at the projector's full output is shown: the
+#: level a well-exposed calibration capture puts it at (the simulator's default exposure:
+#: 0.656), which leaves headroom for a glossy screen's highlight above white.
+REFERENCE_WHITE = 0.65
 
 
 @dataclass
@@ -50,6 +62,17 @@ def encode8(cal: Calibration, linear: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(enc) * 255.0).astype(np.uint8)
 
 
+def absolute_scale(model: RuntimeModel, shape: tuple[int, int]) -> float:
+    """The factor that puts the white screen at the projector's full output at
+    :data:`REFERENCE_WHITE`: ``shape`` (H, W) of the frames; the full output's 99th percentile
+    (mean of the channels, linear camera units) is measured on the model's white screen."""
+    full = white_response(model, np.full((*shape, 3), 255, np.uint8))
+    top = float(np.percentile(full.mean(axis=2), 99.0))
+    if not (np.isfinite(top) and top > 0):
+        raise ValueError(f"the calibration's white screen shows no light at full output ({top})")
+    return REFERENCE_WHITE / top
+
+
 def predict(
     comp: Compensation, image: np.ndarray, eye: np.ndarray, compensate_for: View | None = None
 ) -> Preview:
@@ -66,9 +89,10 @@ def predict(
     else:
         plain = model
     cal = comp.cal
-    white = encode8(cal, white_response(model, image))
-    uncomp = encode8(cal, predict_view(plain, image, eye))
-    comped = encode8(cal, predict_view(model, projected, eye))
+    k = absolute_scale(model, image.shape[:2])
+    white = encode8(cal, k * white_response(model, image))
+    uncomp = encode8(cal, k * predict_view(plain, image, eye))
+    comped = encode8(cal, k * predict_view(model, projected, eye))
     return Preview(white, uncomp, comped, projected, delta_e2000(uncomp, white),
                    delta_e2000(comped, white))  # fmt: skip
 
