@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,7 @@ from viewcomp.calib.fit.pixel import (
     ScreenModel,
     calibrate_pixel,
 )
+from viewcomp.calib.fit.quality import capture_quality, ramp_residual
 from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
@@ -240,8 +242,15 @@ def calibrate(
     fit_mode: str = "all",
     smooth_px: float = DEFAULT_SMOOTH_PX,
     lobe_param: str | None = None,
+    maps: dict[str, np.ndarray] | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> Calibration:
     """Calibrate both methods from a loaded capture set.
+
+    How good the captures were (exposure, noise, the per-pixel model's residual on the ramp:
+    :func:`~viewcomp.calib.fit.quality.capture_quality`) goes to ``info["quality"]``; given a
+    dict ``maps``, the per-pixel residual map (H, W) float32 is put in it as
+    ``"ramp_residual"`` (for `calibrate --report`). ``log`` hears each stage as it starts.
 
     Captures in camera space (``[capture] space = "camera"``) are first rectified onto the
     projector grid (:mod:`viewcomp.calib.geo.rectify`: chessboard + Gray code); the geometric
@@ -256,8 +265,10 @@ def calibrate(
             to do. The paper's method failing is not an error: the calibration then holds
             the per-pixel method alone and ``info["paper_error"]`` says why.
     """
+    say = log or (lambda _msg: None)
     geometry_stats = None
     if cs.rig.capture.space != "projector":
+        say("rectifying the camera's captures onto the projector grid (chessboard, Gray code)")
         from viewcomp.calib.geo.rectify import (
             rectify_capture_set,  # camera frames -> the projector grid
         )
@@ -274,13 +285,17 @@ def calibrate(
     if missing:
         raise FitError(f"white|screen/{missing[0]}", "missing from the capture set")
     clipped = cs.clipped_pixels()
+    say("fitting the per-pixel method (colour mixing, response, specular lobe)")
     pixel = calibrate_pixel(white, screen, geometry, smooth_px, ~clipped, lobe_param)
     info: dict[str, Any] = {
         "captures": str(cs.path),
         "has_black": "black" in screen,
         "smooth_px": smooth_px,
         "clipped_pixels": int(np.count_nonzero(clipped)),
+        "quality": capture_quality(pixel, white, screen),
     }
+    if maps is not None:
+        maps["ramp_residual"] = ramp_residual(pixel, screen["ramp"])
     # The paper's image-wide statistics leave out the highlight (where the fitted lobe seen
     # by the camera exceeds a quarter of the diffuse level) and clipped pixels.
     lobe_cam = pixel.lobe.at(geometry, geometry.camera)
@@ -288,6 +303,7 @@ def calibrate(
     del lobe_cam
     if np.mean(stat_mask) < 0.5:
         stat_mask = ~clipped
+    say("fitting the paper's method")
     try:
         paper = calibrate_paper(white, screen, geometry, fit_mode, stat_mask)
     except FitError as exc:

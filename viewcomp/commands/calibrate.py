@@ -14,7 +14,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Fit both methods - the paper's (global colour mixing, response from the "
         "ramp, Phong power law) and the per-pixel one (per-pixel mixing and ambient, "
         "baseline + lobe specular fit) - and write one bundle file. Prints how well each "
-        "fit went; refuses captures that make a fit impossible, naming the file.",
+        "fit went and ends with a verdict - good, usable or poor, with the reasons "
+        "(exposure, noise, clipping, coverage and decoding in camera space, fit residuals "
+        "against the captures' noise); refuses captures that make a fit impossible, naming "
+        "the file.",
     )
     p.add_argument("capture_dir", help="capture-set folder (rig.toml, white/, screen/)")
     p.add_argument("-o", "--output", required=True, help="bundle file to write (exact path)")
@@ -41,6 +44,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="Gaussian blur sigma in projector pixels of the per-pixel colour mixing and "
         "ambient (default 3)",
     )
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        default=None,
+        help="also write the verdict and pictures into DIR (replaced whole): calibration.json, "
+        "exposure.png, residual.png (the model's error per pixel), gamut.png (the brightest "
+        "white the screen can show per pixel)",
+    )
     p.set_defaults(run=run)
 
 
@@ -59,8 +70,12 @@ def run(args: argparse.Namespace) -> int:
     log(f"calibrating a {w}x{h} projector ({space} space captures, black: {cs.has_black})")
     smooth = DEFAULT_SMOOTH_PX if args.mixing_blur_px is None else args.mixing_blur_px
     lobe_param = None if args.lobe == "auto" else args.lobe
-    cal = calibrate(cs, fit_mode=args.paper_fit, smooth_px=smooth, lobe_param=lobe_param)
+    maps: dict = {}
+    cal = calibrate(
+        cs, fit_mode=args.paper_fit, smooth_px=smooth, lobe_param=lobe_param, maps=maps, log=log
+    )
     del cs  # the captures (1.2 GB at 3840x2160) are not needed to write the bundle
+    log(f"writing {args.output}")
     cal.save(args.output)
     lobe = cal.pixel.lobe
     print(f"wrote {args.output} (methods: {', '.join(cal.methods)})")
@@ -94,7 +109,26 @@ def run(args: argparse.Namespace) -> int:
             f"{m.get('chessboard_rms_px')} px RMS; lens {m.get('distortion')}; largest frame "
             f"shift {geo.get('max_frame_shift_px')} px"
         )
+    _verdict(cal, maps, args.report, log)
     return 0
+
+
+def _verdict(cal, maps: dict, report: str | None, log) -> None:
+    """Print the verdict and its reasons; write the report folder when asked."""
+    from viewcomp.calib.eval.verdict import judge
+
+    verdict = judge(cal)
+    print(f"verdict: {verdict.level.upper()} calibration")
+    for reason in verdict.reasons:
+        print(f"  - {reason}")
+    if verdict.paper_level is not None and verdict.paper_level != "good":
+        print(f"  (the paper's method alone: {verdict.paper_level})")
+    if report is not None:
+        from viewcomp.calib.eval.calreport import write_calibration_report
+
+        log(f"writing the report {report}")
+        files = write_calibration_report(report, cal, verdict, maps)
+        print(f"report: {', '.join(str(f) for f in files)}")
 
 
 def _v(a) -> str:
@@ -106,3 +140,7 @@ def _check_paths(args: argparse.Namespace) -> None:
     from viewcomp.commands._common import check_output_file
 
     check_output_file(args.output, args.capture_dir, make_parents=True)
+    if args.report is not None:
+        from viewcomp.commands._common import check_output_folder
+
+        check_output_folder(args.report, args.capture_dir, args.output)
