@@ -294,7 +294,10 @@ def test_cli_export(
     guard = tmp_path / "guard.lua"
     assert main(["export-mpv", str(bundle), "-o", str(out), "--angle", "60",
                  "--guard", str(guard)]) == 0  # fmt: skip
-    assert 'mp.commandv("quit", "2")' in guard.read_text()
+    from viewcomp.rt.export.mpv import guard_script
+
+    assert guard.read_text() == guard_script()  # the guard itself, whole
+    assert "stop(2," in guard.read_text() and "stop(3," in guard.read_text()
     assert f"--script={guard}" in capsys.readouterr().out
     with pytest.raises(SystemExit):  # never over the shader it writes
         main(["export-mpv", str(bundle), "-o", str(out), "--guard", str(out)])
@@ -506,3 +509,40 @@ def test_a_rejected_shader_fails_loudly(
                             "--audio=no", "--length=1", str(clip)],
                            capture_output=True, text=True, timeout=60)  # fmt: skip
     assert plain.returncode == 0 and "PARAM" in plain.stdout + plain.stderr
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_the_guard_tells_no_video_output_from_a_rejected_shader(
+    mpv_display: str, cal: Any, tmp_path: Path
+) -> None:
+    """Under Xvfb without --gpu-sw mpv opens no video output (it refuses the software
+    renderer): the guard exits 3 saying so and that the shader was not tried; a rejected
+    shader exits 2 saying it was rejected. The two read differently."""
+    from viewcomp.rt.export.mpv import guard_script
+
+    good, _ = export_mpv_shader(cal, angle=60.0)
+    shader = tmp_path / "good.glsl"
+    shader.write_text(good)
+    broken = tmp_path / "broken.glsl"
+    broken.write_text(good.replace("vec4 hook() {", "vec4 hook() { not glsl;"))
+    guard = tmp_path / "guard.lua"
+    guard.write_text(guard_script())
+    still = tmp_path / "still.png"
+    cv2.imwrite(str(still), smooth_frame(W, H, seed=2)[..., ::-1])
+
+    def play(path: Path, *context: str) -> subprocess.CompletedProcess[str]:
+        cmd = ["mpv", "--no-config", "--vo=gpu", *context, f"--glsl-shaders={path}",
+               f"--script={guard}", "--frames=1", "--audio=no", "--osc=no",
+               f"--geometry={W}x{H}", str(still)]  # fmt: skip
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+
+    no_output = play(shader)  # no --gpu-sw: mpv refuses llvmpipe, no context opens
+    said = no_output.stdout + no_output.stderr
+    assert no_output.returncode == 3, said
+    assert "could not open a video output" in said and "not tried" in said
+    assert "was rejected" not in said
+    rejected = play(broken, "--gpu-context=x11egl", "--gpu-sw")
+    said = rejected.stdout + rejected.stderr
+    assert rejected.returncode == 2, said
+    assert "compensation shader was rejected" in said and "video output (" not in said

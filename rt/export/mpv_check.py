@@ -35,16 +35,23 @@ class MpvCheckError(RuntimeError):
     """The check could not run (no mpv, no display, no shader file); the message says why."""
 
 
+#: The guard's exit status when mpv could not open any video output (the shader untried).
+NO_OUTPUT_STATUS = 3
+
+
 @dataclass(frozen=True)
 class MpvCheck:
     """What mpv did with the shader: ``ok`` when it exited 0 with no error of its video
-    output; ``errors`` mpv's error lines; ``version`` its first ``--version`` line."""
+    output; ``errors`` mpv's error lines; ``version`` its first ``--version`` line;
+    ``no_output`` when mpv could not open a video output at all (the guard's exit status 3:
+    the shader was never tried, so the check says nothing about it)."""
 
     ok: bool
     status: int
     errors: list[str]
     version: str
     command: list[str]
+    no_output: bool = False
 
 
 def _still(path: Path) -> None:
@@ -98,4 +105,7 @@ def check_mpv(
             raise MpvCheckError(f"mpv did not finish within {timeout:g} s") from None
     lines = [ln.strip() for ln in (p.stdout + p.stderr).splitlines()]
     errors = [ln for ln in lines if ln.startswith("[vo") and not _SOURCE_LINE.match(ln)]
-    return MpvCheck(p.returncode == 0 and not errors, p.returncode, errors, first, cmd)
+    no_output = p.returncode == NO_OUTPUT_STATUS
+    if no_output:  # the guard's line names the output's failure and what mpv probed
+        errors = [ln for ln in lines if "could not open a video output" in ln] or errors
+    return MpvCheck(p.returncode == 0 and not errors, p.returncode, errors, first, cmd, no_output)

@@ -14,7 +14,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(with export-mpv's guard script; on this display, or a private Xvfb with --headless "
         "or without one) and say "
         "whether mpv ran it. mpv skips a shader it cannot parse or compile and plays "
-        "uncompensated with exit status 0; this exits with status 2 and mpv's error instead.",
+        "uncompensated with exit status 0; this exits with status 2 and mpv's error instead. "
+        "A video output that cannot open (no display, no GPU context) is said as such: the "
+        "shader was then not tried.",
     )
     p.add_argument("shader", help="the shader file from `viewcomp export-mpv`")
     p.add_argument("--vo", choices=["gpu", "gpu-next"], default="gpu",
@@ -37,6 +39,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"{result.version} (vo={args.vo}) runs {args.shader}")
         return 0
     said = "; ".join(result.errors[:2]) or f"exit status {result.status}"
+    if result.no_output:
+        print(f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) could not open a "
+              f"video output here, so {args.shader} was not tried: {said}; fix: run the "
+              "check on the kiosk's display, or with --headless (a private Xvfb with "
+              "software OpenGL)", file=sys.stderr)  # fmt: skip
+        return 2
     fix = ("export it without --param for this mpv (or use one whose libplacebo reads "
            "//!PARAM)" if "PARAM" in said else "export it again with this viewcomp (an "
            "edited or cut-short file is rejected), or check mpv's OpenGL driver")  # fmt: skip
