@@ -55,7 +55,8 @@ _GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 _FIX = (
     "give the path of a material .npz holding float arrays "
     + ", ".join(f"{key} {shape}" for key, shape in MATERIAL_SHAPES.items())
-    + " (e.g. one of shared/data/materials/)"
+    + " (scripts/convert_neural_brdf.py of viewcomp's repository writes them from the "
+    "published Neural-BRDF weights of MERL, RGL-EPFL and Nielsen 2015 materials)"
 )
 
 
