@@ -167,3 +167,23 @@ def test_sweep_rows_and_checks():
     means = sweep_means(rows)
     checks = check_sweep(means)
     assert set(checks["off90_pixel_theta_le_both_90"]) == {"60"}
+
+
+def test_values_that_begin_with_a_minus(calib, tmp_path, capsys):
+    """A viewer left of the screen's centre has x < 0: `--eye -0.2,0,0.8` is a value, not an
+    option (argparse said "expected one argument"); it renders as `--eye=-0.2,0,0.8` does.
+    A negative size reaches the size's own check."""
+    src = tmp_path / "in.png"
+    write_png(src, np.random.default_rng(1).integers(0, 256, (48, 96, 3), dtype=np.uint8))
+    bundle = str(calib / "red.vcb")
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    assert main(["render", bundle, str(src), "-o", str(a), "--eye", "-0.2,0,0.8",
+                 "--backend", "cpu", "--quiet"]) == 0  # fmt: skip
+    assert main(["render", bundle, str(src), "-o", str(b), "--eye=-0.2,0,0.8",
+                 "--backend", "cpu", "--quiet"]) == 0  # fmt: skip
+    np.testing.assert_array_equal(read_image(a), read_image(b))
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", str(tmp_path / "s"), "--size", "-5x10"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "-5x10" in err and "expected one argument" not in err

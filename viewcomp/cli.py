@@ -6,6 +6,7 @@ import argparse
 import importlib
 import logging
 import os
+import re
 import signal
 import sys
 import threading
@@ -119,6 +120,50 @@ def _on_sigterm(signum: int, frame: object) -> None:
     raise Terminated
 
 
+_DASH_VALUE = re.compile(r"^-[0-9.]")
+
+
+def _value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """The option strings, in every sub-command, that take exactly one value."""
+    found: set[str] = set()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                found |= _value_options(sub)
+        elif isinstance(action, argparse._StoreAction | argparse._AppendAction) and (
+            action.nargs is None and action.option_strings
+        ):
+            found.update(action.option_strings)
+    return found
+
+
+def join_dash_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -> list[str]:
+    """``argv`` with each value that begins with '-' and a digit or '.' joined to the option
+    before it (``--eye -0.2,0,1`` -> ``--eye=-0.2,0,1``; ``-o -5.png`` -> ``-o-5.png``) when
+    that option takes one value.
+
+    argparse takes such a token for an option unless it is a plain negative number, and
+    answers "expected one argument": a viewer left of the screen's centre (x < 0) could not
+    be given, and a mistyped ``--size -5x10`` got that message instead of the size's own.
+    """
+    takes = _value_options(parser)
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token == "--":
+            out += argv[i:]
+            break
+        if token in takes and i + 1 < len(argv) and _DASH_VALUE.match(argv[i + 1]):
+            sep = "=" if token.startswith("--") else ""
+            out.append(f"{token}{sep}{argv[i + 1]}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
@@ -131,7 +176,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # before anything imports cv2
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_dash_values(parser, sys.argv[1:] if argv is None else argv))
     _own_words_only(args.command)
     name = f"viewcomp {args.command}"
     previous = None
