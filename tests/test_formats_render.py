@@ -7,6 +7,8 @@ and the CPU backend keep it fast: the writers, not the compensation, are under t
 
 from __future__ import annotations
 
+import shutil
+import subprocess
 from pathlib import Path
 
 import av
@@ -204,3 +206,23 @@ def test_stills(tmp_path, name) -> None:
     else:
         assert np.abs(got.astype(int) - ref).mean() < 4  # JPEG quality 95, 4:4:4
     assert names(tmp_path) == sorted(["in.png", "ref.png", name])
+
+
+@needs_hap
+def test_hap_keeps_sync_like_the_pyav_writer(clip, tmp_path) -> None:
+    """Video starting 0.5 s after the audio: ffmpeg (HAP) and PyAV (H.264) shift the audio
+    the same way, so both outputs hold the same audio, starting with the first frame."""
+    late = tmp_path / "late.mkv"
+    ffmpeg = shutil.which("ffmpeg")
+    assert ffmpeg is not None
+    subprocess.run([ffmpeg, "-v", "error", "-i", str(clip), "-itsoffset", "0.5", "-i",
+                    str(clip), "-map", "1:v", "-map", "0:a", "-c", "copy", str(late)],
+                   check=True, timeout=60)  # fmt: skip
+    got = {}
+    for name, codec in (("h264.mov", None), ("hap.mov", "hap")):
+        render_file(fake(), late, tmp_path / name, EYE, backend="cpu", codec=codec,
+                    progress=False)  # fmt: skip
+        got[name] = playback(tmp_path / name)
+    assert got["hap.mov"]["frames"] == got["h264.mov"]["frames"] == FRAMES
+    assert got["h264.mov"]["audio_s"] == pytest.approx(SECONDS - 0.5, abs=0.1)
+    assert got["hap.mov"]["audio_s"] == pytest.approx(got["h264.mov"]["audio_s"], abs=0.03)

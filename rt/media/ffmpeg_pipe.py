@@ -7,8 +7,9 @@ RGB frame to it and renames the file into place when ffmpeg exits cleanly. It ha
 :class:`~viewcomp.rt.media.video.EncodeThread` runs it.
 
 Audio does not pass through Python: ffmpeg reads it from the input file itself (the first
-audio stream), shifted by the input video's start time (``-itsoffset``) as VideoWriter
-shifts it, copied when the container takes its codec, else re-encoded (AAC in .mov). The
+audio stream), shifted so that the input video's first frame is at 0 as VideoWriter shifts
+it (ffmpeg already moves the file's earliest timestamp to 0; ``-itsoffset`` adds the rest),
+copied when the container takes its codec, else re-encoded (AAC in .mov). The
 reader is therefore told ``audio_mode = "none"``. ffmpeg's messages go to a temporary file
 (a full pipe would stall it) and its last lines make the error message when it fails.
 """
@@ -42,7 +43,9 @@ class FfmpegPipeWriter:
         audio_source: the input file to take the audio from (its first audio stream), or
             None for no audio.
         audio_codec: the input audio's codec name (copied or re-encoded as the plan says).
-        audio_start: the input video's start time, seconds (the audio is shifted by it).
+        audio_shift: seconds to move the audio earlier after ffmpeg's own shift (which puts
+            the input file's earliest timestamp at 0): the video stream's start time minus
+            the file's, >= 0.
     """
 
     audio_mode = "none"  # ffmpeg reads the audio from the input itself
@@ -55,7 +58,7 @@ class FfmpegPipeWriter:
         rate: Fraction,
         audio_source: str | os.PathLike[str] | None = None,
         audio_codec: str | None = None,
-        audio_start: float = 0.0,
+        audio_shift: float = 0.0,
     ) -> None:
         assert plan.codec is not None and plan.profile is not None
         self.path = plan.path
@@ -76,8 +79,8 @@ class FfmpegPipeWriter:
                "-framerate", f"{rate.numerator}/{rate.denominator}", "-i", "pipe:0"]  # fmt: skip
         how = plan.audio_plan(audio_codec) if audio_source is not None else None
         if how is not None:
-            if audio_start:
-                cmd += ["-itsoffset", f"{-audio_start:.6f}"]
+            if audio_shift:
+                cmd += ["-itsoffset", f"{-audio_shift:.6f}"]
             cmd += ["-i", str(audio_source), "-map", "0:v:0", "-map", "1:a:0"]
             cmd += ["-c:a", "copy" if how[0] == "copy" else how[1]]
         else:

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
+import av
 import numpy as np
 from tqdm import tqdm
 
@@ -370,7 +371,11 @@ def _writer(
     assert plan.codec is not None
     if plan.codec.via_ffmpeg:
         src = info.path if reader.audio_stream is not None else None
-        return FfmpegPipeWriter(plan, w, h, info.rate, src, info.audio_codec, info.start)
+        # ffmpeg puts the file's earliest timestamp at 0; the video's start is shifted to 0
+        # here, so the audio moves by the difference (as VideoWriter's audio_start does).
+        first = reader.container.start_time
+        shift = info.start - (first / av.time_base if first is not None else 0.0)
+        return FfmpegPipeWriter(plan, w, h, info.rate, src, info.audio_codec, max(shift, 0.0))
     return VideoWriter(plan.path, w, h, info.rate, crf=crf, colorspace=info.colorspace,
                        audio=reader.audio_stream, audio_start=info.start, preset=preset,
                        plan=plan)  # fmt: skip
