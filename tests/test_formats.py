@@ -12,6 +12,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import av
+import numpy as np
 import pytest
 
 from viewcomp.rt.media import formats
@@ -282,3 +283,32 @@ def test_cli_truncated_input_message(tmp_path) -> None:
         "being written? re-encode it or copy it again"
     )
     assert "moov" not in msg and "Errno" not in msg
+
+
+def test_encoder_errors_are_not_blamed_on_the_folder(tmp_path, monkeypatch) -> None:
+    """FFmpeg's EPERM from an encoder (what h264_nvenc says without a GPU) is the encoder's;
+    a full disk is the disk's. Neither shows FFmpeg's codes."""
+    import errno
+
+    from viewcomp.rt.media.video import VideoError, VideoWriter
+
+    for exc, says, not_says in [
+        (av.error.PermissionError(errno.EPERM, "Operation not permitted", "avcodec_open2"),
+         "FFmpeg failed while encoding (Operation not permitted)", "permissions"),
+        (av.error.InvalidDataError(-1094995529, "Invalid data found when processing input"),
+         "FFmpeg failed while encoding", "1094995529"),
+        (OSError(errno.ENOSPC, "No space left on device"), "free some space", "FFmpeg"),
+    ]:  # fmt: skip
+        writer = VideoWriter(tmp_path / "o.mp4", 64, 32, Fraction(10))
+
+        def fail(rgb, exc=exc):
+            raise exc
+
+        monkeypatch.setattr(writer, "_write", fail)
+        with pytest.raises(VideoError) as info:
+            writer.write(np.zeros((32, 64, 3), np.uint8))
+        writer.abort()
+        msg = str(info.value)
+        assert msg.startswith(f"cannot write video {tmp_path / 'o.mp4'}") and says in msg
+        assert not_says not in msg and "Errno" not in msg
+    assert list(tmp_path.iterdir()) == []

@@ -35,6 +35,7 @@ Decisions:
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import queue
@@ -64,6 +65,9 @@ X264_PRESETS = (
     "veryslow", "placebo",
 )  # fmt: skip
 DEFAULT_PRESET = "veryfast"
+# FFmpeg errors that are the disk's, not the encoder's (a full disk, a read-only or vanished
+# file system): reported with the output's path and what to do about the disk.
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.ENOENT, errno.EFBIG}
 _OPUS_RATES = (48000, 24000, 16000, 12000, 8000)  # the only rates Opus encodes
 _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1", 8: "7.1"}
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
@@ -441,8 +445,24 @@ class VideoWriter:
         """Encode one RGB frame (H, W, 3) uint8 at timestamp index / rate."""
         try:
             self._write(rgb)
-        except OSError as exc:  # a full disk, a vanished folder: named by the output's path
-            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
+        except (OSError, av.FFmpegError) as exc:
+            raise self._write_error(exc) from exc
+
+    def _write_error(self, exc: BaseException) -> VideoError:
+        """A failure while encoding, in plain words: the disk's (full, read-only, gone: named
+        by the output's path) or the encoder's (FFmpeg's words without its code; FFmpeg's
+        EPERM/EACCES from an encoder are not about the folder)."""
+        disk = isinstance(exc, OSError) and (
+            not isinstance(exc, av.FFmpegError) or exc.errno in _DISK_ERRNOS
+        )
+        if disk:
+            assert isinstance(exc, OSError)
+            return VideoError(f"cannot write video {describe_os_error(exc, self.path)}")
+        cause, _ = describe_av_error(exc)
+        return VideoError(
+            f"cannot write video {self.path}: FFmpeg failed while encoding ({cause}); fix: "
+            "try another codec, or the default one (leave out --codec and --profile)"
+        )
 
     def _write(self, rgb: np.ndarray) -> None:
         frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
@@ -460,6 +480,12 @@ class VideoWriter:
 
     def write_audio(self, item: AudioItem) -> None:
         """Remux an audio packet or encode an audio frame (as :attr:`audio_mode` says)."""
+        try:
+            self._write_audio(item)
+        except (OSError, av.FFmpegError) as exc:
+            raise self._write_error(exc) from exc
+
+    def _write_audio(self, item: AudioItem) -> None:
         if self.audio_out is None:
             return
         if item.packet is not None:
@@ -494,9 +520,9 @@ class VideoWriter:
                 for packet in self.audio_out.encode(None):
                     self.container.mux(packet)
             self.container.close()
-        except OSError as exc:  # undo, then name the output (not the temporary file)
-            self._abort(exc)
-            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
+        except (OSError, av.FFmpegError) as exc:  # undo, then name the output (not the
+            self._abort(exc)  # temporary file) or the encoder
+            raise self._write_error(exc) from exc
         except BaseException as exc:  # undo on any failure, Ctrl-C included; then re-raise
             self._abort(exc)
             raise
