@@ -346,7 +346,7 @@ class VideoWriter:
         width: int,
         height: int,
         rate: Fraction,
-        codec: str | None = "libx264",
+        codec: str | None = None,
         crf: float = 18,
         colorspace: Colorspace = "bt709",
         audio: Any = None,
