@@ -209,8 +209,7 @@ def pairings() -> str:
     for c in CONTAINERS:
         names = ", ".join(c.codecs)
         parts.append(f"{'/'.join(c.extensions)}: {names} (default {c.codecs[0]})")
-    seq = "/".join(s for s in STILL_SUFFIXES if s not in (".jpeg", ".tiff"))
-    parts.append(f"image sequence DIR/%05d{{{seq}}}")
+    parts.append("image sequence: DIR/%05d.png (or .jpg, .tif)")
     return "; ".join(parts)
 
 
