@@ -2,8 +2,9 @@
 
 No GL here: :class:`VideoReader` decodes on a worker thread into a bounded queue and yields
 :class:`~viewcomp.rt.media.frames.Planes` (already fitted to the projector grid) and audio items;
-:class:`VideoWriter` encodes RGB frames (H.264 via libx264 by default, yuv420p, the input's
-frame rate) and carries the audio over, writing to a temporary file in the output's folder
+:class:`VideoWriter` encodes RGB frames (H.264 via libx264 by default, the input's frame
+rate; codec, pixel format, profile and audio codec as :mod:`viewcomp.rt.media.formats`
+plans them) and carries the audio over, writing to a temporary file in the output's folder
 that replaces the output only when everything succeeded.
 
 Decisions:
@@ -23,13 +24,18 @@ Decisions:
   libx264/libx265 only. :class:`EncodeThread` runs the encoder on its own thread behind a
   bounded queue, so encoding overlaps decoding and the GL work (PyAV releases the GIL while
   it converts and encodes).
+- Pixel formats: yuv420p for H.264/H.265/VP9/AV1, yuv422p10le for ProRes, yuv444p for FFV1
+  (the table in :mod:`viewcomp.rt.media.formats`); swscale converts the RGB frames with the
+  input's matrix, limited range.
 - Audio: remuxed (packets copied) when the output container takes the codec, else decoded on
-  the worker thread and re-encoded to AAC. Audio timestamps are shifted by the video stream's
-  start time so that A/V sync is kept with video starting at 0.
+  the worker thread and re-encoded (AAC for .mp4/.mov, Opus at 48 kHz for .mkv/.webm).
+  Audio timestamps are shifted by the video stream's start time so that A/V sync is kept
+  with video starting at 0.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import queue
@@ -45,24 +51,24 @@ import numpy as np
 
 from viewcomp.calib.errors import ViewcompError, describe_os_error
 from viewcomp.calib.io.atomic import AtomicFile
+from viewcomp.rt.media.averrors import DAMAGED_FIX, describe_av_error
+from viewcomp.rt.media.formats import OutputPlan, plan_output
 from viewcomp.rt.media.frames import ColorRange, Colorspace, Planes, fit_rect, pad_planes
 
 log = logging.getLogger(__name__)
 
 AudioMode = Literal["packets", "frames", "none"]
 
-VIDEO_FIX = (
-    "check that it is a complete video file FFmpeg can decode (`ffprobe FILE`), or re-encode "
-    "it, e.g. `ffmpeg -i FILE -c:v libx264 -pix_fmt yuv420p -c:a aac fixed.mp4`"
-)
-_CRF_CODECS = {"libx264", "libx265", "libvpx", "libvpx-vp9", "libaom-av1", "libsvtav1"}
-_PRESET_CODECS = {"libx264", "libx265"}
+VIDEO_FIX = DAMAGED_FIX
 X264_PRESETS = (
     "ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower",
     "veryslow", "placebo",
 )  # fmt: skip
 DEFAULT_PRESET = "veryfast"
-_MP4_AUDIO = {"aac", "mp3", "alac", "opus", "flac", "ac3", "eac3"}
+# FFmpeg errors that are the disk's, not the encoder's (a full disk, a read-only or vanished
+# file system): reported with the output's path and what to do about the disk.
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.ENOENT, errno.EFBIG}
+_OPUS_RATES = (48000, 24000, 16000, 12000, 8000)  # the only rates Opus encodes
 _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1", 8: "7.1"}
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
 
@@ -152,7 +158,8 @@ class VideoReader:
         try:
             self.container = av.open(str(self.path), "r")
         except (av.FFmpegError, OSError, ValueError) as exc:
-            raise VideoError(f"cannot read video {self.path}: {exc}; fix: {VIDEO_FIX}") from exc
+            cause, fix = describe_av_error(exc, self.path)
+            raise VideoError(f"cannot read video {self.path}: {cause}; fix: {fix}") from exc
         try:
             self.info = self._probe()
         except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
@@ -286,8 +293,9 @@ class VideoReader:
             if item is _END:
                 return
             if isinstance(item, _Failure):
+                cause, fix = describe_av_error(item.exc, self.path)
                 raise VideoError(
-                    f"cannot decode video {self.path}: {item.exc}; fix: {VIDEO_FIX}"
+                    f"cannot decode video {self.path}: {cause}; fix: {fix}"
                 ) from item.exc
             yield item
 
@@ -317,12 +325,15 @@ class VideoWriter:
         path: the output file; its extension picks the container (``.mp4``, ``.mkv``, ...).
         width, height: frame size in pixels (yuv420p codecs want even sizes).
         rate: frames per second (the input's).
-        codec: FFmpeg encoder name, ``libx264`` by default.
-        crf: constant rate factor for the encoders that have one (x264/x265/vpx/aom/svt).
-        preset: x264/x265 speed preset (:data:`X264_PRESETS`), ``veryfast`` by default;
-            ignored by other encoders.
+        codec: FFmpeg encoder name (or an alias, ``prores``); None: the container's default
+            (libx264 for .mp4/.mkv/.mov, libvpx-vp9 for .webm).
+        crf: constant rate factor for the encoders that have one (x264/x265/vp9/svt-av1).
         colorspace: matrix to encode and tag with (``bt601``/``bt709``); range is limited.
         audio: the input's audio stream (a template; read before decoding starts) or None.
+        preset: x264/x265 speed preset (:data:`X264_PRESETS`), ``veryfast`` by default;
+            ignored by other encoders.
+        profile: the codec's profile (ProRes ``hq``, ...; :mod:`viewcomp.rt.media.formats`).
+        plan: an already checked :class:`OutputPlan` (then ``codec``/``profile`` are unused).
 
     Frames are written with :meth:`write`, audio with :meth:`write_audio`; :meth:`close`
     flushes and renames into place, :meth:`abort` (or an exception in a ``with`` block)
@@ -335,14 +346,21 @@ class VideoWriter:
         width: int,
         height: int,
         rate: Fraction,
-        codec: str = "libx264",
+        codec: str | None = None,
         crf: float = 18,
         colorspace: Colorspace = "bt709",
         audio: Any = None,
         audio_start: float = 0.0,
         preset: str = DEFAULT_PRESET,
+        profile: str | None = None,
+        plan: OutputPlan | None = None,
     ) -> None:
-        if codec in _PRESET_CODECS and preset not in X264_PRESETS:
+        if plan is None:
+            plan = plan_output(path, False, codec, profile)
+        if plan.kind != "video" or plan.codec is None or plan.codec.via_ffmpeg:
+            raise ValueError(f"VideoWriter writes PyAV video files, not {plan.kind} {path}")
+        self.plan = plan
+        if plan.codec.preset and preset not in X264_PRESETS:
             raise VideoError(
                 f"cannot write video {path}: unknown preset {preset!r}; fix: use one of "
                 f"{', '.join(X264_PRESETS)}"
@@ -361,12 +379,12 @@ class VideoWriter:
             self.container = av.open(str(self.tmp), "w")
         except (av.FFmpegError, OSError, ValueError) as exc:
             self._target.discard(exc)
+            cause, _ = describe_av_error(exc)
             raise VideoError(
-                f"cannot write video {self.path}: {exc}; fix: use a writable folder and a "
-                "video extension such as .mp4 or .mkv"
+                f"cannot write video {self.path}: {cause}; fix: use a writable folder"
             ) from exc
         try:
-            self._setup(width, height, rate, codec, crf, audio, audio_start)
+            self._setup(width, height, rate, crf, audio, audio_start)
         except BaseException:  # undo on any failure, Ctrl-C included; then re-raise
             self.abort()
             raise
@@ -376,31 +394,30 @@ class VideoWriter:
         width: int,
         height: int,
         rate: Fraction,
-        codec: str,
         crf: float,
         audio: Any,
         audio_start: float,
     ) -> None:
+        plan = self.plan
+        assert plan.codec is not None
+        codec = plan.codec.encoder
+        plan.codec.quiet()
         try:
             vs = self.container.add_stream(codec, rate=rate)
-        except (av.FFmpegError, ValueError) as exc:
+        except (av.FFmpegError, ValueError) as exc:  # the plan checked it exists: rare
+            cause, _ = describe_av_error(exc)
             raise VideoError(
-                f"cannot write video {self.path}: encoder {codec!r} unavailable ({exc}); fix: "
-                "use --codec libx264"
+                f"cannot write video {self.path}: the encoder {codec!r} cannot start ({cause}); "
+                "fix: use --codec libx264"
             ) from exc
         vs.width, vs.height = width, height
-        vs.pix_fmt = "yuv420p"
+        vs.pix_fmt = plan.pix_fmt
         cc = vs.codec_context
         cc.time_base = Fraction(1) / rate
         cc.framerate = rate
         cc.colorspace = 1 if self.colorspace == "bt709" else 6
         cc.color_range = 1
-        options = {}
-        if codec in _CRF_CODECS:
-            options["crf"] = str(crf)
-        if codec in _PRESET_CODECS:
-            options["preset"] = self.preset
-        vs.options = options
+        vs.options = plan.encoder_options(crf, self.preset)
         self.video = vs
         self.audio_mode: AudioMode = "none"
         self.audio_out: Any = None
@@ -408,16 +425,17 @@ class VideoWriter:
         if audio is None:
             return
         name = audio.codec_context.name
-        fmt = self.container.format.name
-        can_copy = name in self.container.supported_codecs and (
-            "mp4" not in fmt or name in _MP4_AUDIO
-        )
-        if can_copy:
+        how = plan.audio_plan(name)
+        if how is not None and how[0] == "copy" and name in self.container.supported_codecs:
             self.audio_out = self.container.add_stream_from_template(audio)
             self.audio_mode = "packets"
         else:
             acc = audio.codec_context
-            self.audio_out = self.container.add_stream("aac", rate=acc.sample_rate or 48000)
+            encoder = plan.container.audio_encoder if plan.container else "aac"
+            sr = acc.sample_rate or 48000
+            if encoder == "libopus" and sr not in _OPUS_RATES:
+                sr = 48000  # PyAV's encoder resamples the frames to the stream's rate
+            self.audio_out = self.container.add_stream(encoder, rate=sr)
             n = acc.layout.nb_channels if acc.layout is not None else 2
             # Streams without a channel order ("2 channels") get the standard one.
             self.audio_out.layout = _STD_LAYOUTS.get(n, "stereo")
@@ -427,14 +445,30 @@ class VideoWriter:
         """Encode one RGB frame (H, W, 3) uint8 at timestamp index / rate."""
         try:
             self._write(rgb)
-        except OSError as exc:  # a full disk, a vanished folder: named by the output's path
-            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
+        except (OSError, av.FFmpegError) as exc:
+            raise self._write_error(exc) from exc
+
+    def _write_error(self, exc: BaseException) -> VideoError:
+        """A failure while encoding, in plain words: the disk's (full, read-only, gone: named
+        by the output's path) or the encoder's (FFmpeg's words without its code; FFmpeg's
+        EPERM/EACCES from an encoder are not about the folder)."""
+        disk = isinstance(exc, OSError) and (
+            not isinstance(exc, av.FFmpegError) or exc.errno in _DISK_ERRNOS
+        )
+        if disk:
+            assert isinstance(exc, OSError)
+            return VideoError(f"cannot write video {describe_os_error(exc, self.path)}")
+        cause, _ = describe_av_error(exc)
+        return VideoError(
+            f"cannot write video {self.path}: FFmpeg failed while encoding ({cause}); fix: "
+            "try another codec, or the default one (leave out --codec and --profile)"
+        )
 
     def _write(self, rgb: np.ndarray) -> None:
         frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
         cs = av.video.reformatter.Colorspace
         frame = frame.reformat(
-            format="yuv420p",
+            format=self.video.pix_fmt,
             dst_colorspace=cs.ITU709 if self.colorspace == "bt709" else cs.ITU601,
             dst_color_range=av.video.reformatter.ColorRange.MPEG,
         )
@@ -446,6 +480,12 @@ class VideoWriter:
 
     def write_audio(self, item: AudioItem) -> None:
         """Remux an audio packet or encode an audio frame (as :attr:`audio_mode` says)."""
+        try:
+            self._write_audio(item)
+        except (OSError, av.FFmpegError) as exc:
+            raise self._write_error(exc) from exc
+
+    def _write_audio(self, item: AudioItem) -> None:
         if self.audio_out is None:
             return
         if item.packet is not None:
@@ -480,9 +520,9 @@ class VideoWriter:
                 for packet in self.audio_out.encode(None):
                     self.container.mux(packet)
             self.container.close()
-        except OSError as exc:  # undo, then name the output (not the temporary file)
-            self._abort(exc)
-            raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
+        except (OSError, av.FFmpegError) as exc:  # undo, then name the output (not the
+            self._abort(exc)  # temporary file) or the encoder
+            raise self._write_error(exc) from exc
         except BaseException as exc:  # undo on any failure, Ctrl-C included; then re-raise
             self._abort(exc)
             raise

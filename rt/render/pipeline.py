@@ -5,7 +5,7 @@ One function, :func:`render_file`, for both backends and for images and videos::
     decode (worker thread) -> fit to the grid -> thumbnail -> eye = eye_track(t)
         -> p = comp(thumb, eye, t)               (model, alpha, beta for this frame)
         -> compensate (GL Compensator, or viewcomp.calib.model.reference.compensate)
-        -> encode (PNG, or PyAV video on its own thread, audio carried over)
+        -> encode (an image, or video on its own thread, audio carried over)
 
 Interfaces:
 
@@ -26,11 +26,15 @@ Interfaces:
   planes, cheap), identical for both backends.
 - ``identity``: the very same decode/upload/shader/read-back/encode with compensation off;
   ``comp`` is not called (nothing to compensate).
-- Images: any OpenCV-readable file in (8-bit RGB after decoding); the output must be ``.png``
-  (8-bit RGB at the grid size). Videos: anything PyAV decodes; output container from the
-  extension, codec/CRF/preset selectable, frame rate, frame count and audio kept.
-- Outputs are written to a temporary file next to the output and renamed at the end; on any
-  error nothing is left at (or next to) the output path.
+- Images: any OpenCV-readable file in (8-bit RGB after decoding); out to ``.png``, ``.jpg``
+  or ``.tif`` (8-bit RGB at the grid size). Videos: anything PyAV decodes; out to a video
+  file (container from the extension, codec/profile/CRF/preset selectable, frame rate, frame
+  count and audio kept) or an image sequence ``DIR/%05d.png`` (no audio). The formats and
+  their checks: :mod:`viewcomp.rt.media.formats`.
+- The output (extension, codec, profile, the grid's size, the encoder starting) is checked
+  before the input is opened.
+- Outputs are written to a temporary file (a temporary folder for a sequence) next to the
+  output and renamed at the end; on any error nothing is left at (or next to) the output.
 """
 
 from __future__ import annotations
@@ -41,16 +45,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
+import av
 import numpy as np
 from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
-from viewcomp.calib.errors import ViewcompError, describe_os_error
-from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
+from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.io.imageio import CaptureError, read_rgb8
 from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
+from viewcomp.rt.media.ffmpeg_pipe import FfmpegPipeWriter
+from viewcomp.rt.media.formats import OutputPlan, plan_output
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
+from viewcomp.rt.media.images import ImageWriteError, SequenceWriter, write_still
 from viewcomp.rt.media.video import (
     DEFAULT_PRESET,
     AudioItem,
@@ -253,22 +261,25 @@ def render_file(
     backend: Backend = "gl",
     identity: bool = False,
     crf: float = 18,
-    codec: str = "libx264",
+    codec: str | None = None,
     preset: str = DEFAULT_PRESET,
     progress: bool = True,
     ctx: Any = None,
+    profile: str | None = None,
 ) -> RenderStats:
     """Compensate an image or a video file for the projector (see the module docstring).
 
     Args:
         comp: the frame parameters (a ``Compensation`` for one calibration and method).
         input_path: image (by extension, :data:`IMAGE_SUFFIXES`) or video.
-        output_path: ``.png`` for an image; a video container (``.mp4``, ``.mkv``) for video.
+        output_path: ``.png``/``.jpg``/``.tif`` for an image; for a video a video file
+            (``.mp4``, ``.mov``, ``.mkv``, ``.webm``) or an image sequence ``DIR/%05d.png``.
         eye_track: ``t_seconds -> eye (3,)`` metres.
         backend: ``"gl"`` (shader, default) or ``"cpu"`` (numpy reference).
         identity: run the same pipeline with compensation off (``comp`` is not called).
-        crf, codec, preset: video encoder settings (H.264 via libx264, CRF 18, preset
-            ``veryfast`` by default; the preset applies to libx264/libx265).
+        crf, codec, preset, profile: video encoder settings (the container's default codec,
+            H.264 but for .webm (VP9); CRF 18; preset ``veryfast`` for libx264/libx265;
+            the codec's default profile, e.g. ProRes 422 HQ).
         progress: show a tqdm bar with frames per second (stderr).
         ctx: an existing moderngl context for the GL backend (else one is made and freed).
 
@@ -276,6 +287,8 @@ def render_file(
         RenderStats (frames rendered, wall seconds, start-up, time in ``comp``).
 
     Raises:
+        FormatError: an output whose extension, codec, profile or size cannot work (before
+            the input is opened; the message lists the working pairings).
         VideoError / ImageError: unreadable input or unwritable output (nothing left behind).
         GLUnavailable: ``backend="gl"`` without a usable OpenGL 3.3 (EGL) driver.
         ValueError / TypeError: ``comp`` is not usable (wrong kind, inconsistent model).
@@ -285,9 +298,9 @@ def render_file(
         raise ValueError(f"backend must be 'gl' or 'cpu', got {backend!r}")
     model = _check_comp(comp)
     src, dst = Path(input_path), Path(output_path)
+    plan = plan_output(dst, is_image(src), codec, profile)  # before the input is opened
+    plan.check_size(model.shape[1], model.shape[0])
     if is_image(src):
-        if dst.suffix.lower() != ".png":
-            raise ImageError(f"image output must be a .png file, got {dst}")
         frame = _read_image(src, model.shape)
         eye0 = _view(eye_track(0.0))
         t_params = 0.0
@@ -302,23 +315,22 @@ def render_file(
             out = eng.run(frame)
         finally:
             eng.release()
-        _write_png(dst, out)
+        _write_image(dst, out)
         seconds = time.perf_counter() - t_start
         return RenderStats("image", 1, seconds, seconds, t_params)
-    return _render_video(comp, model, src, dst, eye_track, backend, identity, crf, codec,
-                         preset, progress, ctx, t_start)  # fmt: skip
+    return _render_video(comp, model, src, plan, eye_track, backend, identity, crf, preset,
+                         progress, ctx, t_start)  # fmt: skip
 
 
 def _render_video(
     comp: CompensationLike,
     model: RuntimeModel,
     src: Path,
-    dst: Path,
+    plan: OutputPlan,
     eye_track: EyeTrack,
     backend: Backend,
     identity: bool,
     crf: float,
-    codec: str,
     preset: str,
     progress: bool,
     ctx: Any,
@@ -331,9 +343,7 @@ def _render_video(
         info = reader.info
         eng = _Engine(backend, model, identity, ctx)
         try:
-            writer = VideoWriter(dst, w, h, info.rate, codec=codec, crf=crf,
-                                 colorspace=info.colorspace, audio=reader.audio_stream,
-                                 audio_start=info.start, preset=preset)  # fmt: skip
+            writer = _writer(plan, reader, crf, preset)
             with EncodeThread(writer, (h, w, 3)) as enc:
                 reader.audio_mode = writer.audio_mode
                 bar = tqdm(total=info.frames, unit="frame", disable=not progress,
@@ -348,6 +358,27 @@ def _render_video(
     seconds = time.perf_counter() - t_start
     first = clock["first"]
     return RenderStats("video", frames, seconds, first or seconds, clock["params"])  # type: ignore[arg-type]
+
+
+def _writer(
+    plan: OutputPlan, reader: VideoReader, crf: float, preset: str
+) -> VideoWriter | SequenceWriter | FfmpegPipeWriter:
+    """The writer for the plan: numbered images, the ffmpeg program (HAP) or PyAV."""
+    info = reader.info
+    w, h = reader.fit if reader.fit is not None else (info.width, info.height)
+    if plan.kind == "sequence":
+        return SequenceWriter(plan.path)
+    assert plan.codec is not None
+    if plan.codec.via_ffmpeg:
+        src = info.path if reader.audio_stream is not None else None
+        # ffmpeg puts the file's earliest timestamp at 0; the video's start is shifted to 0
+        # here, so the audio moves by the difference (as VideoWriter's audio_start does).
+        first = reader.container.start_time
+        shift = info.start - (first / av.time_base if first is not None else 0.0)
+        return FfmpegPipeWriter(plan, w, h, info.rate, src, info.audio_codec, max(shift, 0.0))
+    return VideoWriter(plan.path, w, h, info.rate, crf=crf, colorspace=info.colorspace,
+                       audio=reader.audio_stream, audio_start=info.start, preset=preset,
+                       plan=plan)  # fmt: skip
 
 
 def _video_loop(
@@ -411,9 +442,10 @@ def _read_image(path: Path, grid: tuple[int, int]) -> np.ndarray:
     return fit_rgb(rgb, grid[1], grid[0])
 
 
-def _write_png(path: Path, rgb: np.ndarray) -> None:
-    """Write an 8-bit RGB PNG atomically (:func:`viewcomp.calib.io.imageio.write_png`)."""
+def _write_image(path: Path, rgb: np.ndarray) -> None:
+    """Write an 8-bit RGB PNG, JPEG or TIFF atomically (:func:`~viewcomp.rt.media.images.
+    write_still`)."""
     try:
-        write_png(path, rgb)
-    except OSError as exc:
-        raise ImageError(f"cannot write image {describe_os_error(exc, path)}") from exc
+        write_still(path, rgb)
+    except ImageWriteError as exc:
+        raise ImageError(str(exc)) from exc

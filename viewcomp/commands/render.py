@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, finite, parse_vec3
@@ -12,8 +13,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "render",
         help="compensate an image or a video for a viewing angle (headless)",
-        description="Compensate an image (PNG out) or a video (H.264 out, audio carried "
-        "over) so that, projected on the calibrated screen, it looks as on a white screen "
+        description="Compensate an image (PNG, JPEG or TIFF out) or a video (H.264, H.265, "
+        "ProRes, DNxHR, HAP, VP9, AV1 or FFV1 out, audio carried over; or an image sequence) "
+        "so that, projected on the calibrated screen, it looks as on a white screen "
         "to a viewer at the given angle or eye position. An input of another size is scaled "
         "to fit the projector, aspect kept, centred on black. The tone map (alpha, beta of "
         "Eq. 21) comes per frame from a small thumbnail and, for video, is smoothed over "
@@ -22,7 +24,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("calib", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("input", help="image (.png, .jpg, ...) or video (anything FFmpeg reads)")
     p.add_argument(
-        "-o", "--output", required=True, help=".png for an image; .mp4/.mkv/.mov for video"
+        "-o",
+        "--output",
+        required=True,
+        help=".png/.jpg/.tif for an image; for a video .mp4/.mov/.mkv/.webm, or DIR/%%05d.png "
+        "(.jpg, .tif) for one image per frame",
     )
     add_eye_arguments(p, required=True, track=True, audience=True)
     add_tone_arguments(p)
@@ -30,8 +36,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="gl: the GLSL shader (default); cpu: the numpy reference")  # fmt: skip
     p.add_argument("--identity", action="store_true",
                    help="run the same pipeline with compensation off (A/B, timing)")  # fmt: skip
-    p.add_argument("--crf", type=finite, default=18, help="video quality (x264 CRF, default 18)")
-    p.add_argument("--codec", default="libx264", help="video codec (default libx264)")
+    p.add_argument("--crf", type=finite, default=18,
+                   help="video quality (CRF of x264/x265/VP9/AV1, default 18)")  # fmt: skip
+    p.add_argument("--codec", default=None,
+                   help="video codec: libx264 (h264), libx265 (hevc), prores_ks (prores), "
+                   "dnxhd (dnxhr), hap, libvpx-vp9 (vp9), libsvtav1 (av1), ffv1 (default: "
+                   "libx264, libvpx-vp9 for .webm)")  # fmt: skip
+    p.add_argument("--profile", default=None,
+                   help="codec profile: ProRes hq (422 HQ, default), standard, lt, proxy, "
+                   "4444; DNxHR hq (default), sq, lb, hqx; HAP hap (default), hap_q")  # fmt: skip
     p.add_argument("--preset", default=None, help="encoder preset, e.g. veryfast (x264)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -43,10 +56,11 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.world.audience import parse_audience
     from viewcomp.cli import UsageError
+    from viewcomp.rt.media.formats import is_sequence_pattern
     from viewcomp.rt.render.pipeline import is_image, render_file
     from viewcomp.rt.render.tracks import constant_audience, constant_eye, load_angle_track
 
-    _check_args(args)
+    _check_args(args)  # the output's format too: before the calibration or input is read
     cal = Calibration.load(args.calib)
     v = cal.rig.viewer
     if args.track is not None:
@@ -59,13 +73,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         eye = cal.eye(args.angle, parse_vec3(args.eye) if args.eye else None)
         track = constant_eye(*eye)
-    if is_image(Path(args.input)) and Path(args.output).suffix.lower() != ".png":
-        raise UsageError(f"an image renders to a .png file, got {args.output}")
-    if not is_image(Path(args.input)) and is_image(Path(args.output)):
-        raise UsageError(
-            f"a video renders to a video file, got {args.output} (an image file name): "
-            "give an output such as out.mp4, .mkv or .mov"
-        )
     lam = DEFAULT_LAMBDA if args.lam is None else args.lam
     tau = None if is_image(Path(args.input)) else args.smooth
     comp = Compensation(cal, args.method, lam, tau=tau)
@@ -79,12 +86,18 @@ def run(args: argparse.Namespace) -> int:
         identity=args.identity,
         crf=args.crf,
         codec=args.codec,
+        profile=args.profile,
         progress=not args.quiet,
         **kwargs,
     )
     what = "identity (compensation off)" if args.identity else f"{args.method} method"
     if is_image(Path(args.input)):  # one picture: a frame rate would mean nothing
         done = f"an image, {what}, {args.backend} backend, in {stats.seconds:.1f} s"
+    elif is_sequence_pattern(args.output):
+        folder = Path(args.output).parent
+        print(f"wrote {stats.frames} images to {folder}{os.sep} ({Path(args.output).name}, "
+              f"numbered from 0; no audio): {what}, {stats.fps:.1f} frames/s")  # fmt: skip
+        return 0
     else:
         done = f"{stats.frames} frames, {what}, {args.backend} backend, {stats.fps:.1f} frames/s"
     print(f"wrote {args.output}: {done}")
@@ -93,10 +106,13 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_args(args: argparse.Namespace) -> None:
     """Before any work: the input usable, the eye within the limits, the output never an
-    input."""
+    input, its extension, codec and profile working together (the grid's size is checked
+    once the calibration is loaded, still before the input is decoded)."""
     from viewcomp.calib.io.paths import check_input_file
     from viewcomp.calib.world.eye import check_angle, check_eye
-    from viewcomp.commands._common import check_output_file
+    from viewcomp.commands._common import check_output_file, check_output_folder
+    from viewcomp.rt.media.formats import is_sequence_pattern, plan_output
+    from viewcomp.rt.render.pipeline import is_image
 
     check_input_file(args.input, "input", "an image or a video file")
     if args.angle is not None:
@@ -107,4 +123,9 @@ def _check_args(args: argparse.Namespace) -> None:
         from viewcomp.calib.world.audience import parse_audience
 
         parse_audience(args.audience, 1.0, 0.0)
-    check_output_file(args.output, args.calib, args.input, args.track)
+    if is_sequence_pattern(args.output) and not is_image(args.input):
+        folder = str(Path(args.output).parent)
+        check_output_folder(folder, args.calib, args.input, args.track, what="image sequence")
+    else:
+        check_output_file(args.output, args.calib, args.input, args.track)
+    plan_output(args.output, is_image(args.input), args.codec, args.profile)
