@@ -48,7 +48,8 @@ from viewcomp.calib.hw.camlock import lock_controls
 from viewcomp.calib.hw.clock import MonotonicClock
 from viewcomp.calib.hw.interface import Camera, Clock, Projector
 from viewcomp.calib.hw.livechecks import LiveChecks
-from viewcomp.calib.hw.mono import MONO_LIMITS, MonoChecks
+from viewcomp.calib.hw.mono import MONO_LIMITS
+from viewcomp.calib.hw.monochecks import MonoChecks
 from viewcomp.calib.hw.plan import Step, capture_plan
 from viewcomp.calib.hw.progress import Progress
 from viewcomp.calib.hw.reader import FrameReader
@@ -186,7 +187,7 @@ def run_capture(
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
     from viewcomp.calib.geo.camresponse import estimate_set_response
-    from viewcomp.calib.geo.rectify import rectify_capture_set
+    from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
 
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
@@ -252,9 +253,14 @@ def run_capture(
         log(f"camera response estimated from the Gray code: {found.spec!r} (misfit {misfit:.4f})")
         rig = replace(rig, camera=replace(rig.camera, response=found.spec))
         cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
-    log("checking the set as `viewcomp calibrate` will (geometry, saturation, order)")
-    rectified, stats = rectify_capture_set(cs)
-    check_captures(rectified)
+    if camera.channels == 1:
+        # colour order and mixing cannot be checked in a mono set (calibrate refuses it)
+        log("checking the set's geometry as `viewcomp calibrate` will")
+        stats = dict(calibrate_geometry(cs).stats)
+    else:
+        log("checking the set as `viewcomp calibrate` will (geometry, saturation, order)")
+        rectified, stats = rectify_capture_set(cs)
+        check_captures(rectified)
     log(
         f"geometry: Zhang reprojection {stats['chessboard']['zhang_rms_px']:.3f} px RMS, "
         f"Gray-code map {stats['graycode']['rms_px']:.3f} px RMS, chessboard vs map "

@@ -25,6 +25,9 @@ Log = Callable[[str], None]
 
 #: Seconds a fresh frame may take beyond ``not_before`` plus a few frames' exposure.
 FRESH_TIMEOUT = 5.0
+#: Stale frames read for one fresh one before giving up (a clock that does not move while a
+#: driver returns queued frames at once would otherwise never reach the deadline).
+MAX_STALE = 2000
 
 
 class FrameReader:
@@ -82,7 +85,7 @@ class FrameReader:
                 return f
             self.dropped += 1
             waited += 1
-            if self.clock.now() > deadline:
+            if self.clock.now() > deadline or waited >= MAX_STALE:
                 want = f"started at or after {not_before:.3f} s"
                 if exposure is not None:
                     want += f" at exposure {exposure:.6g} s"
