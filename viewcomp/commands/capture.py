@@ -11,7 +11,9 @@ from typing import TYPE_CHECKING
 from viewcomp.cli import UsageError
 
 if TYPE_CHECKING:
-    from viewcomp.calib.hw.devices import Camera, Projector, SimulatedRig
+    from viewcomp.calib.hw.clock import MonotonicClock
+    from viewcomp.calib.hw.interface import Camera, Projector
+    from viewcomp.calib.hw.simrig import SimulatedRig
     from viewcomp.calib.world.rig import Rig
 
 
@@ -30,21 +32,47 @@ def register(sub: argparse._SubParsersAction) -> None:
         "capture is refused.",
     )
     p.add_argument("out_dir", nargs="?", help="capture-set folder to write (new or empty)")
-    p.add_argument("--camera", type=int, help="OpenCV camera index (0 is the first)")
+    p.add_argument(
+        "--camera",
+        default=None,
+        help="the camera, as the backend names it: an OpenCV index (0 is the first), a gphoto2 "
+        "model or port, PRODUCER.cti[#SERIAL] for genicam, anything for a plug-in",
+    )
+    p.add_argument(
+        "--camera-backend",
+        default="opencv",
+        help="opencv (default), gphoto2 (DSLRs; pip install gphoto2), genicam (machine vision "
+        "through a GenTL producer; pip install harvesters), or module:factory, a plug-in: "
+        "factory(spec) -> Camera in an importable module, called with --camera",
+    )
     p.add_argument("--monitor", type=int, help="the projector's monitor (see --list-monitors)")
     p.add_argument("--frames", type=int, default=8, help="frames averaged per capture (default 8)")
     p.add_argument(
         "--settle",
         type=float,
         default=None,
-        help="seconds between showing a pattern and grabbing (default 0.5; 0 with --simulate)",
+        help="seconds added to the measured projector->camera latency before a frame counts "
+        "as showing its pattern (default 0.1; 0 with --simulate)",
     )
     p.add_argument(
         "--exposure",
         type=float,
         default=None,
-        help="camera exposure, in the driver's units (with --simulate: the simulated camera's "
-        "linear gain, default 0.8); with --hdr the bracket's longest exposure",
+        help="camera exposure in seconds (with --simulate: 1 s is the simulator's unit "
+        "exposure); with --hdr the bracket's longest exposure. Default: searched with the "
+        "white screen up, so that the brightest pattern's lit region reaches 80%% of full scale",
+    )
+    p.add_argument(
+        "--retries",
+        type=int,
+        default=3,
+        help="failed camera reads retried in a row before the camera counts as gone (default 3)",
+    )
+    p.add_argument(
+        "--allow-auto",
+        action="store_true",
+        help="go on (with a warning) when the camera's automatic exposure or white balance "
+        "cannot be switched off; without it that is an error",
     )
     p.add_argument(
         "--hdr",
@@ -92,11 +120,15 @@ def run(args: argparse.Namespace) -> int:
     if args.out_dir is None:
         raise UsageError("give the capture-set folder OUT_DIR")
     _check_out_dir(args)
+    if args.retries < 0:
+        raise UsageError(f"--retries must be >= 0, got {args.retries}")
     if args.frames < 1:
         raise UsageError(f"--frames must be at least 1, got {args.frames}")
     if args.settle is not None and args.settle < 0:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
-    if not args.simulate and (args.camera is None or args.monitor is None):
+    if not args.simulate and (
+        (args.camera is None and args.camera_backend == "opencv") or args.monitor is None
+    ):
         raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
     from viewcomp.calib.hw.procedure import NO_TERMINAL, console_prompt, run_capture
     from viewcomp.calib.io.hdr import DEFAULT_STOPS
@@ -105,12 +137,7 @@ def run(args: argparse.Namespace) -> int:
     template = load_rig(args.rig) if args.rig else None
     response = args.response
     if response is None and template is None and not args.simulate:
-        if args.hdr:
-            raise UsageError(
-                "--hdr needs the camera's response to merge the bracket: give --response "
-                "srgb|linear|GAMMA or a --rig with one (estimating it needs 8-bit captures)"
-            )
-        response = "estimate"
+        response = "estimate"  # with --hdr: from a bracket (Debevec), else from the Gray code
     if response is not None and response != "estimate":
         from viewcomp.calib.world.response import parse_response
 
@@ -133,10 +160,14 @@ def run(args: argparse.Namespace) -> int:
             return ok
 
         settle = 0.0 if args.settle is None else args.settle
+        clock = rig_dev.clock
     else:
-        projector, camera = _hardware(args, parse_size)
+        from viewcomp.calib.hw.clock import MonotonicClock
+
+        clock = MonotonicClock()
+        projector, camera = _hardware(args, parse_size, clock)
         prompt = base_prompt or console_prompt
-        settle = 0.5 if args.settle is None else args.settle
+        settle = 0.1 if args.settle is None else args.settle
     try:
         paths = run_capture(
             args.out_dir,
@@ -147,14 +178,26 @@ def run(args: argparse.Namespace) -> int:
             log=log,
             frames=args.frames,
             settle=settle,
+            clock=clock,
             response=response,
             hdr_stops=DEFAULT_STOPS if args.hdr else None,
+            exposure=_exposure(args),
+            allow_auto=args.allow_auto,
+            retries=args.retries,
         )
     finally:
         projector.close()
         camera.close()
     print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
     return 0
+
+
+def _exposure(args: argparse.Namespace) -> float | str | None:
+    """What run_capture is told: "auto" (search) without --exposure; the seconds given on
+    hardware; None with --simulate (the simulated camera starts at --exposure)."""
+    if args.exposure is None:
+        return "auto"
+    return None if args.simulate else float(args.exposure)
 
 
 def _interactive() -> bool:
@@ -177,7 +220,7 @@ def _simulated(
     write (the simulation's geometry, without the lens)."""
     from dataclasses import replace
 
-    from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
+    from viewcomp.calib.hw.simrig import SimulatedRig as _SimulatedRig
     from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
     from viewcomp.calib.sim.simulator import (
         PROJECTOR_PRESETS,
@@ -195,7 +238,7 @@ def _simulated(
         rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
     true_rig = scaled_camera_rig(rig, size)
     if args.exposure is not None and not args.exposure > 0:
-        raise UsageError(f"--exposure of the simulated camera is a gain > 0, got {args.exposure}")
+        raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     sim = camera_simulator(true_rig, args.seed, PROJECTOR_PRESETS[projector], args.exposure)
     screen: AnyScreen
     if material is not None:
@@ -208,16 +251,24 @@ def _simulated(
 
 
 def _hardware(
-    args: argparse.Namespace, parse_size: Callable[[str], tuple[int, int]]
+    args: argparse.Namespace,
+    parse_size: Callable[[str], tuple[int, int]],
+    clock: MonotonicClock,
 ) -> tuple[Projector, Camera]:
-    """The glfw projector on --monitor and the OpenCV camera --camera."""
-    from viewcomp.calib.hw.devices import OpenCVCamera
+    """The glfw projector on --monitor and the camera --camera of --camera-backend, on
+    ``clock``."""
+    from viewcomp.calib.hw.backends import open_camera
     from viewcomp.rt.play.projector import GlfwProjector
 
+    if args.exposure is not None and not args.exposure > 0:
+        raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     cam_size = parse_size(args.camera_size) if args.camera_size else None
-    camera = OpenCVCamera(args.camera, size=cam_size, exposure=args.exposure)
+    camera = open_camera(args.camera_backend, args.camera or "", clock, cam_size)
+    units = getattr(camera, "units", None)
+    if units:
+        print(f"{camera.name}: exposure {units}", file=sys.stderr)
     try:
-        projector = GlfwProjector(args.monitor)
+        projector = GlfwProjector(args.monitor, clock=clock)
     except BaseException:
         camera.close()
         raise
