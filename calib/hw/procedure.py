@@ -1,8 +1,12 @@
 """The capture procedure of `viewcomp capture`: patterns in, a checked capture set out.
 
-For each pattern, in order: show it on the projector, wait ``settle`` seconds, grab and
-average ``frames`` camera frames, and check the capture at once, so that a problem is named
-while the user can still fix it:
+The devices are those of :mod:`viewcomp.calib.hw.interface`. Before the first capture the
+camera's automatic modes are locked (:mod:`~viewcomp.calib.hw.camlock`) and the projector ->
+camera latency is measured (:mod:`~viewcomp.calib.hw.latency`). Then for each pattern, in
+order: show it on the projector (its swap time t), average ``frames`` camera frames whose
+exposure started at or after t + latency + ``settle`` (:class:`~viewcomp.calib.hw.reader.
+FrameReader`: the driver's queue is drained by timestamps, failed reads retried), and check
+the capture at once, so that a problem is named while the user can still fix it:
 
 - saturated: more than 0.5% of the lit pixel-channels at the maximum code -> lower the
   exposure (or the projector's brightness);
@@ -33,7 +37,6 @@ and unattended runs (``--yes``) answer them.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -41,9 +44,13 @@ from pathlib import Path
 import numpy as np
 
 from viewcomp.calib.hw.bracket import Bracket
-from viewcomp.calib.hw.devices import Camera, Projector
+from viewcomp.calib.hw.camlock import lock_controls
+from viewcomp.calib.hw.clock import MonotonicClock
+from viewcomp.calib.hw.interface import Camera, Clock, Projector
+from viewcomp.calib.hw.latency import MAX_LATENCY, measure_latency
 from viewcomp.calib.hw.livechecks import LiveChecks
 from viewcomp.calib.hw.plan import Step, capture_plan
+from viewcomp.calib.hw.reader import FrameReader
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import check_captures
@@ -134,23 +141,27 @@ def run_capture(
     prompt: Prompt = console_prompt,
     log: Log = print,
     frames: int = 8,
-    settle: float = 0.5,
-    sleep: Callable[[float], None] = time.sleep,
+    settle: float = 0.0,
+    clock: Clock | None = None,
     response: str | float | None = None,
     hdr_stops: tuple[float, ...] | None = None,
+    exposure: float | None = None,
+    allow_auto: bool = False,
+    retries: int = 3,
 ) -> list[Path]:
     """Capture a camera-space set into ``out_dir`` (see the module doc); returns the files.
 
     Args:
         out_dir: a new or empty folder, or an old capture set (its files are replaced).
-        projector, camera: the devices (:mod:`viewcomp.calib.hw.devices`).
+        projector, camera: the devices (:mod:`viewcomp.calib.hw.interface`).
         rig_template: rig.toml geometry to keep (its resolutions are replaced by the
             devices'); None: the example rig, written with a "to complete" note.
         prompt: asks the user to swap screens; returning False stops (nothing written).
         log: progress and warnings.
         frames: camera frames averaged per capture (>= 1).
-        settle: seconds between showing a pattern and grabbing (projector and camera latency).
-        sleep: the waiting function (tests pass a no-op).
+        settle: seconds added to the measured latency before a frame counts as showing the
+            pattern (a projector whose light settles slowly: dynamic iris, lamp).
+        clock: the devices' clock (None: :class:`~viewcomp.calib.hw.clock.MonotonicClock`).
         response: the camera's response to write: None keeps the template's (sRGB without
             one), ``"estimate"`` estimates it from the Gray-code captures (light adds up:
             :func:`viewcomp.calib.geo.camresponse.estimate_response`), otherwise a rig.toml value.
@@ -158,6 +169,10 @@ def run_capture(
             relative exposures of an HDR bracket (:class:`Bracket`): every capture is taken at
             each and merged, written as float32 linear ``.npy``. Needs a known response (not
             ``"estimate"``) and a camera whose exposure can be set.
+        exposure: the camera's exposure in seconds; None keeps the camera's.
+        allow_auto: go on (with a warning) when the camera's automatic exposure or white
+            balance cannot be switched off; otherwise that is an error.
+        retries: failed reads retried in a row before the camera counts as gone.
 
     Raises:
         CaptureError: a capture is refused (the message names it and the fix), the user
@@ -183,20 +198,26 @@ def run_capture(
     if response is not None and response != "estimate":
         rig = replace(rig, camera=replace(rig.camera, response=parse_response(response).spec))
     w, h = projector.resolution
-    problems = camera.lock()
-    for p in problems:
+    clock = clock if clock is not None else MonotonicClock()
+    reader = FrameReader(camera, clock, log, retries)
+    for p in lock_controls(camera, allow_auto, exposure):
         log(f"warning: {p}")
     checks = LiveChecks(rig.camera.response_curve(), (w, h))
     bracket = (
-        None if hdr_stops is None else Bracket(camera, hdr_stops, rig.camera.response_curve(), log)
+        None
+        if hdr_stops is None
+        else Bracket(camera, reader, clock, hdr_stops, rig.camera.response_curve(), log)
     )
+    latency = MAX_LATENCY
 
-    def take() -> tuple[np.ndarray, np.ndarray | None]:
-        """One capture: (encoded codes, None), or with a bracket (merged float32 linear,
-        pixel-channels clipped in every frame)."""
+    def take(pattern: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray | None]:
+        """Show ``pattern`` and capture it: (encoded codes, None), or with a bracket (merged
+        float32 linear, pixel-channels clipped in every frame)."""
+        not_before = projector.show(pattern) + latency + settle
         if bracket is None:
-            return camera.grab(frames), None
-        return bracket.grab(frames)
+            exp = camera.get("exposure") if "exposure" in camera.controls() else None
+            return reader.average(frames, not_before, exposure=exp, what=what), None
+        return bracket.grab(frames, not_before, what)
 
     captured: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     plan = capture_plan(w, h)
@@ -204,20 +225,20 @@ def run_capture(
     for i, step in enumerate(plan):
         if step.sub != stage:
             if stage:
-                _end_of_stage(stage, projector, checks, take, settle, sleep, plan)
+                _end_of_stage(stage, checks, take, plan)
             stage = step.sub
             if not prompt(stage, STAGE_MESSAGES[stage]):
                 raise CaptureError("capture stopped by the user; nothing was written")
-        projector.show(step.pattern)
-        sleep(settle)
-        image, clipped = take()
+            if i == 0:
+                latency = _latency(projector, reader, clock, camera, log)
+        image, clipped = take(step.pattern, f"{step.sub}/{step.name}")
         if clipped is None:
             checks.check(step.sub, step.name, image)
         else:
             checks.check_merged(step.sub, step.name, image, clipped)
         captured[step.sub][step.name] = image
         log(f"{step.sub}/{step.name} ({i + 1}/{len(plan)})")
-    _end_of_stage(stage, projector, checks, take, settle, sleep, plan)
+    _end_of_stage(stage, checks, take, plan)
     projector.show(np.zeros((h, w, 3), np.uint8))
 
     cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
@@ -242,20 +263,32 @@ def run_capture(
     return paths
 
 
+def _latency(
+    projector: Projector, reader: FrameReader, clock: Clock, camera: Camera, log: Log
+) -> float:
+    """The measured projector -> camera latency (s); :data:`MAX_LATENCY` when the camera saw
+    no change (the live checks then say what it does not see)."""
+    found = measure_latency(projector, reader, clock)
+    if found is None:
+        log(
+            f"warning: {camera.name} saw no change from a black to a white screen; waiting "
+            f"{MAX_LATENCY:g} s after each pattern"
+        )
+        return MAX_LATENCY
+    log(f"projector -> camera latency: {found * 1000:.0f} ms (earlier frames are dropped)")
+    return found
+
+
 def _end_of_stage(
     stage: str,
-    projector: Projector,
     checks: LiveChecks,
-    take: Callable[[], tuple[np.ndarray, np.ndarray | None]],
-    settle: float,
-    sleep: Callable[[float], None],
+    take: Callable[[np.ndarray, str], tuple[np.ndarray, np.ndarray | None]],
     plan: list[Step],
 ) -> None:
     """Capture gray again (``take``: codes and None, or merged linear and its clipped mask)
     and compare it with the stage's first gray (not written)."""
     gray = next(s.pattern for s in plan if s.name == "gray")
-    projector.show(gray)
-    sleep(settle)
-    image, clipped = take()
+    what = f"{stage}/gray (again, at the end)"
+    image, clipped = take(gray, what)
     lin = checks.linear(image) if clipped is None else image
-    checks.moved(stage, f"{stage}/gray (again, at the end)", lin)
+    checks.moved(stage, what, lin)

@@ -11,7 +11,9 @@ from typing import TYPE_CHECKING
 from viewcomp.cli import UsageError
 
 if TYPE_CHECKING:
-    from viewcomp.calib.hw.devices import Camera, Projector, SimulatedRig
+    from viewcomp.calib.hw.clock import MonotonicClock
+    from viewcomp.calib.hw.interface import Camera, Projector
+    from viewcomp.calib.hw.simrig import SimulatedRig
     from viewcomp.calib.world.rig import Rig
 
 
@@ -37,14 +39,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--settle",
         type=float,
         default=None,
-        help="seconds between showing a pattern and grabbing (default 0.5; 0 with --simulate)",
+        help="seconds added to the measured projector->camera latency before a frame counts "
+        "as showing its pattern (default 0.1; 0 with --simulate)",
     )
     p.add_argument(
         "--exposure",
         type=float,
         default=None,
-        help="camera exposure, in the driver's units (with --simulate: the simulated camera's "
-        "linear gain, default 0.8); with --hdr the bracket's longest exposure",
+        help="camera exposure in seconds (with --simulate: 1 s is the simulator's unit "
+        "exposure, default 0.8); with --hdr the bracket's longest exposure",
+    )
+    p.add_argument(
+        "--allow-auto",
+        action="store_true",
+        help="go on (with a warning) when the camera's automatic exposure or white balance "
+        "cannot be switched off; without it that is an error",
     )
     p.add_argument(
         "--hdr",
@@ -133,10 +142,14 @@ def run(args: argparse.Namespace) -> int:
             return ok
 
         settle = 0.0 if args.settle is None else args.settle
+        clock = rig_dev.clock
     else:
-        projector, camera = _hardware(args, parse_size)
+        from viewcomp.calib.hw.clock import MonotonicClock
+
+        clock = MonotonicClock()
+        projector, camera = _hardware(args, parse_size, clock)
         prompt = base_prompt or console_prompt
-        settle = 0.5 if args.settle is None else args.settle
+        settle = 0.1 if args.settle is None else args.settle
     try:
         paths = run_capture(
             args.out_dir,
@@ -147,8 +160,11 @@ def run(args: argparse.Namespace) -> int:
             log=log,
             frames=args.frames,
             settle=settle,
+            clock=clock,
             response=response,
             hdr_stops=DEFAULT_STOPS if args.hdr else None,
+            exposure=None if args.simulate else args.exposure,
+            allow_auto=args.allow_auto,
         )
     finally:
         projector.close()
@@ -177,7 +193,7 @@ def _simulated(
     write (the simulation's geometry, without the lens)."""
     from dataclasses import replace
 
-    from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
+    from viewcomp.calib.hw.simrig import SimulatedRig as _SimulatedRig
     from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
     from viewcomp.calib.sim.simulator import (
         PROJECTOR_PRESETS,
@@ -195,7 +211,7 @@ def _simulated(
         rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
     true_rig = scaled_camera_rig(rig, size)
     if args.exposure is not None and not args.exposure > 0:
-        raise UsageError(f"--exposure of the simulated camera is a gain > 0, got {args.exposure}")
+        raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     sim = camera_simulator(true_rig, args.seed, PROJECTOR_PRESETS[projector], args.exposure)
     screen: AnyScreen
     if material is not None:
@@ -208,16 +224,21 @@ def _simulated(
 
 
 def _hardware(
-    args: argparse.Namespace, parse_size: Callable[[str], tuple[int, int]]
+    args: argparse.Namespace,
+    parse_size: Callable[[str], tuple[int, int]],
+    clock: MonotonicClock,
 ) -> tuple[Projector, Camera]:
-    """The glfw projector on --monitor and the OpenCV camera --camera."""
-    from viewcomp.calib.hw.devices import OpenCVCamera
+    """The glfw projector on --monitor and the OpenCV camera --camera, on ``clock``."""
+    from viewcomp.calib.hw.opencv_camera import OpenCVCamera
     from viewcomp.rt.play.projector import GlfwProjector
 
+    if args.exposure is not None and not args.exposure > 0:
+        raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     cam_size = parse_size(args.camera_size) if args.camera_size else None
-    camera = OpenCVCamera(args.camera, size=cam_size, exposure=args.exposure)
+    camera = OpenCVCamera(args.camera, size=cam_size, clock=clock)
+    print(f"{camera.name}: exposure {camera.units}", file=sys.stderr)
     try:
-        projector = GlfwProjector(args.monitor)
+        projector = GlfwProjector(args.monitor, clock=clock)
     except BaseException:
         camera.close()
         raise
