@@ -431,3 +431,22 @@ def test_screens_swap_and_materials(materials_dir) -> None:
     with pytest.raises(ValueError, match="no emulated screen"):
         emu.swap_screen("wall")
     assert set(PROFILES) == {"webcam", "dslr", "mono12"}
+
+
+def test_dlp_white_segment_adds_light_to_white_only() -> None:
+    from viewcomp.calib.emu.dlp import DlpModel
+
+    dlp = DlpModel(sequence="RGBW", white_gain=0.3)
+    emu = open_emulator("dslr", "white", seed=18, projector_size=SIZE, dlp=dlp)
+    white = _exposure_pair(emu, WHITE, P)
+    lit = white.mean(axis=2) > 0.6 * np.percentile(white.mean(axis=2), 99)
+    primaries = 0
+    for c in range(3):
+        one = np.zeros_like(WHITE)
+        one[..., c] = 255
+        primaries = primaries + _lit_mean(_exposure_pair(emu, one, P), lit)
+    # by hand: over a whole period each primary at 255 gives (1 - leak) over black; the
+    # white segment at min(R, G, B) = 255 adds white_gain of every primary, only for white
+    mix, leak = emu.truth.mixing, np.asarray(dlp.leak)
+    expected = (mix @ (1 - leak) + 0.3 * mix @ np.ones(3)) / (mix @ (1 - leak))
+    np.testing.assert_allclose(_lit_mean(white, lit) / primaries, expected, rtol=0.02)

@@ -13,6 +13,8 @@ pixels are boxes: sample s shows the pattern's levels of the projector pixel it 
 
     integral(s) = R(s) * (mixing @ E_rgb(s) + E_w(s) * mixing @ 1) + A(s) * exposure
 
+(E_w looked up by min(R, G, B), only when the sequence has a white segment)
+
 with E the drive integrals of :meth:`~viewcomp.calib.emu.dlp.DlpModel.drive_luts` looked
 up per sample from its level (and its row's window: a rolling shutter), and each camera
 pixel is the mean of its f x f samples (pixels integrate area).
@@ -24,6 +26,7 @@ from collections import OrderedDict
 from dataclasses import replace
 from functools import cached_property
 
+import cv2
 import numpy as np
 
 from viewcomp.calib.sim.simcamera import SimCamera
@@ -106,13 +109,11 @@ class SceneView:
         return got[1], got[2]
 
     def levels(self, key: int, image: np.ndarray) -> np.ndarray:
-        """(Hs, Ws, 4) uint8: the levels R, G, B and min(R, G, B) of the projector pixel under
-        each sample, for the pattern ``image`` (H, W, 3) uint8 known as ``key`` (kept)."""
+        """(Hs, Ws, 3) uint8: the levels R, G, B of the projector pixel under each sample, for
+        the pattern ``image`` (H, W, 3) uint8 known as ``key`` (kept)."""
         got = self._codes.get(key)
         if got is None:
-            flat = np.asarray(image, np.uint8).reshape(-1, 3)
-            rgb = flat[self._flat_index]
-            got = np.concatenate([rgb, rgb.min(axis=-1, keepdims=True)], axis=-1)
+            got = np.asarray(image, np.uint8).reshape(-1, 3)[self._flat_index]
             self._codes[key] = got
             while len(self._codes) > CODE_CACHE:
                 self._codes.popitem(last=False)
@@ -135,19 +136,31 @@ class SceneView:
         r_term, a_term = self.terms(screen)
         hs, ws = r_term.shape[:2]
         f = self.factor
-        drive = np.zeros((hs, ws, 4), np.float32)
+        drive = np.zeros((hs, ws, 3), np.float32)
+        white = None  # the white segment's drive, only when it lights anything
         for key, image, luts in pieces:
             lv = self.levels(key, image)
             n = luts.shape[0]
-            flat = luts.astype(np.float32).transpose(1, 0, 2).reshape(4, n * 256)
-            if n == 1:
-                for c in range(4):
-                    drive[..., c] += flat[c][lv[..., c]]
-            else:
+            lut32 = luts.astype(np.float32)
+            has_white = bool(np.any(lut32[:, 3]))
+            if has_white and white is None:
+                white = np.zeros((hs, ws), np.float32)
+            if n == 1:  # one window: a table lookup per channel
+                drive += cv2.LUT(lv, np.ascontiguousarray(lut32[0, :3].T[None]))
+                if has_white:
+                    white += lut32[0, 3][lv.min(axis=-1)]
+            else:  # a window per camera row: sample row // f picks its row's table
+                flat = lut32.transpose(1, 0, 2).reshape(4, n * 256)
                 base = (np.arange(hs) // f * 256)[:, None]
-                for c in range(4):
+                for c in range(3):
                     drive[..., c] += flat[c][base + lv[..., c]]
-        light = drive[..., :3] @ self.mixing.T + drive[..., 3:] * self.white
-        total = r_term * light + a_term * np.float32(exposure)
+                if has_white:
+                    white += flat[3][base + lv.min(axis=-1)]
+        light = cv2.transform(drive, self.mixing)  # camera channel i = sum_j mixing[i, j] d_j
+        if white is not None:
+            light += white[..., None] * self.white
+        total = r_term * light
+        total += a_term * np.float32(exposure)
         hc, wc = self.shape
-        return total.reshape(hc, f, wc, f, 3).mean(axis=(1, 3))
+        # INTER_AREA with an integer factor is the exact mean of each f x f block
+        return cv2.resize(total, (wc, hc), interpolation=cv2.INTER_AREA)
