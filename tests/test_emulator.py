@@ -450,3 +450,16 @@ def test_dlp_white_segment_adds_light_to_white_only() -> None:
     mix, leak = emu.truth.mixing, np.asarray(dlp.leak)
     expected = (mix @ (1 - leak) + 0.3 * mix @ np.ones(3)) / (mix @ (1 - leak))
     np.testing.assert_allclose(_lit_mean(white, lit) / primaries, expected, rtol=0.02)
+
+
+def test_truth_sees_the_steady_light() -> None:
+    emu = open_emulator("webcam", "white", seed=19, projector_size=SIZE)
+    sim = emu.truth.simulator
+    eye = emu.truth.rig.viewer.eye(70.0)
+    got = emu.truth.observe_linear("white", WHITE, eye)
+    # by hand: full white is every primary at full light (leak + (1 - leak) * 1 = 1) on a
+    # matte white board of albedo 0.85, seen at the simulator's exposure 0.8
+    ambient = np.array([0.015, 0.015, 0.018])
+    expected = 0.8 * 0.85 * (sim.falloff[..., None] * emu.truth.mixing.sum(axis=1) + ambient)
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+    assert got.shape == (H, W, 3)

@@ -290,11 +290,11 @@ class EmulatedCamera:
 
     def _meter(self, t: float) -> np.ndarray:
         """The scene's mean radiance (3,) at time ``t`` (what the camera's meter reads)."""
-        image = self.projector.image_at(t)
-        key = id(image)
+        shown = self.projector.shown_at(t)
+        key = shown.index
         light = self._meter_cache.get(key)
         if light is None:
-            light = self.projector.model.steady(image).reshape(-1, 3).mean(axis=0)
+            light = self.projector.model.steady(shown.image).reshape(-1, 3).mean(axis=0)
             self._meter_cache = {key: light}
         scene = self.scenes[0]
         r_term, a_term = scene.terms(self.screens[self._screen_name()])

@@ -133,13 +133,14 @@ class EmulatedProjector:
             k += 1
         del tl[:k]
 
-    def image_at(self, t: float) -> np.ndarray:
-        """The pattern lighting the screen at time ``t``: (H, W, 3) uint8, read-only."""
+    def shown_at(self, t: float) -> Shown:
+        """The pattern lighting the screen at time ``t`` (its image is (H, W, 3) uint8,
+        read-only)."""
         current = self.timeline[0]
         for s in self.timeline:
             if s.t_light <= t:
                 current = s
-        return current.image
+        return current
 
     def close(self) -> None:
         """Nothing to release."""
