@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 from viewcomp.cli import UsageError
 
 if TYPE_CHECKING:
+    from viewcomp.calib.emu.emulator import Emulator
+    from viewcomp.calib.emu.faults import Faults
     from viewcomp.calib.hw.clock import MonotonicClock
     from viewcomp.calib.hw.interface import Camera, Projector
     from viewcomp.calib.hw.simrig import SimulatedRig
@@ -108,6 +110,32 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
     add_simulator_arguments(sim, size="--sim-size", material=True)
+    emu = p.add_argument_group("hardware emulation (no hardware, harsher than --simulate)")
+    emu.add_argument(
+        "--emulate",
+        choices=("webcam", "dslr", "mono12"),
+        default=None,
+        help="run the real procedure on emulated devices: a DLP projector (latency 2-4 "
+        "refreshes, colour sub-frames) and a camera profile (webcam: 1280x720-like UVC with "
+        "MJPEG, driver queue, auto exposure, rolling shutter; dslr: slow raw 14-bit; mono12: "
+        "machine vision); the screen from --screen/--gloss or --material, the projector's "
+        "size from --sim-size, the randomness from --seed",
+    )
+    emu.add_argument(
+        "--bump-at",
+        metavar="K:PX",
+        default=None,
+        help="with --emulate: bump the camera at the K-th pattern shown (counted from 0, the "
+        "latency sentinel included) so the image moves about PX camera pixels",
+    )
+    emu.add_argument(
+        "--faults",
+        metavar="SPEC",
+        default=None,
+        help="with --emulate: more faults, comma-separated: drop=G+G (lost frames at grabs G, "
+        "counted from 0), fail=G+G (failed reads), late=K+K (patterns lit one refresh late), "
+        "drop_p=P, fail_p=P, late_p=P (probabilities)",
+    )
     add_force_argument(p, "capture set")
     p.set_defaults(run=run)
 
@@ -126,17 +154,20 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--frames must be at least 1, got {args.frames}")
     if args.settle is not None and args.settle < 0:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
-    if not args.simulate and (
+    faults = _emulator_faults(args)
+    if not (args.simulate or args.emulate) and (
         (args.camera is None and args.camera_backend == "opencv") or args.monitor is None
     ):
-        raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
+        raise UsageError(
+            "give --camera N and --monitor M (or --simulate or --emulate for no hardware)"
+        )
     from viewcomp.calib.hw.procedure import NO_TERMINAL, console_prompt, run_capture
     from viewcomp.calib.io.hdr import DEFAULT_STOPS
     from viewcomp.calib.world.rig import load_rig
 
     template = load_rig(args.rig) if args.rig else None
     response = args.response
-    if response is None and template is None and not args.simulate:
+    if response is None and template is None and not (args.simulate or args.emulate):
         response = "estimate"  # with --hdr: from a bracket (Debevec), else from the Gray code
     if response is not None and response != "estimate":
         from viewcomp.calib.world.response import parse_response
@@ -161,6 +192,18 @@ def run(args: argparse.Namespace) -> int:
 
         settle = 0.0 if args.settle is None else args.settle
         clock = rig_dev.clock
+    elif args.emulate:
+        size = parse_size(args.sim_size) if args.sim_size else None
+        emulator, template = _emulated(args, size, template, faults)
+        projector, camera, clock = emulator.projector, emulator.camera, emulator.clock
+
+        def prompt(stage: str, message: str) -> bool:
+            ok = (base_prompt or console_prompt)(stage, message)
+            if ok:
+                emulator.swap_screen(stage)  # the emulated hands swap the screen
+            return ok
+
+        settle = 0.1 if args.settle is None else args.settle
     else:
         from viewcomp.calib.hw.clock import MonotonicClock
 
@@ -188,6 +231,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         projector.close()
         camera.close()
+        if args.emulate:
+            print(f"emulated devices' clock: {clock.now():.1f} s", file=sys.stderr)
     print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
     return 0
 
@@ -248,6 +293,61 @@ def _simulated(
     dev = _SimulatedRig(sim, {"white": white_screen(), "screen": screen})
     # the simulated world's geometry is known: write it (without the lens, for calibrate)
     return dev, dev.projector, dev.camera, written_rig(true_rig)
+
+
+def _emulator_faults(args: argparse.Namespace) -> Faults | None:
+    """The faults of --bump-at and --faults (None without --emulate, where they are refused)."""
+    if not args.emulate:
+        for flag, value in (("--bump-at", args.bump_at), ("--faults", args.faults)):
+            if value is not None:
+                raise UsageError(f"{flag} injects a fault into emulated devices: add --emulate")
+        return None
+    if args.simulate:
+        raise UsageError("--simulate and --emulate are two different rigs: give one")
+    from dataclasses import replace
+
+    from viewcomp.calib.emu.faults import Faults, FaultSpecError, parse_bump, parse_faults
+
+    try:
+        faults = parse_faults(args.faults) if args.faults else Faults()
+        if args.bump_at is not None:
+            faults = replace(faults, bump_at=parse_bump(args.bump_at))
+    except FaultSpecError as e:
+        flag = "--faults" if args.bump_at is None or "bump" not in str(e) else "--bump-at"
+        raise UsageError(f"{flag}: {e}") from None
+    return faults
+
+
+def _emulated(
+    args: argparse.Namespace,
+    size: tuple[int, int] | None,
+    template: Rig | None,
+    faults: Faults | None,
+) -> tuple[Emulator, Rig]:
+    """The emulated rig (:func:`viewcomp.calib.emu.emulator.open_emulator`) and the rig.toml
+    to write: the true geometry without the lens, with the response the camera's spec sheet
+    would give (linear raw, or sRGB for a webcam: not its true tone curve)."""
+    from dataclasses import replace
+
+    from viewcomp.calib.emu.emulator import open_emulator
+    from viewcomp.calib.sim.simcamera import written_rig
+    from viewcomp.calib.sim.simulator import simulation_rig
+    from viewcomp.commands._common import simulated_screen
+
+    colour, gloss, material, _ = simulated_screen(args)
+    rig = template or simulation_rig()
+    emu = open_emulator(
+        args.emulate,
+        material if material is not None else colour,
+        seed=args.seed,
+        projector_size=size or rig.projector.resolution,
+        gloss=gloss,
+        faults=faults,
+        rig=rig,
+    )
+    written = written_rig(emu.truth.rig)
+    response = "linear" if emu.profile.linear else "srgb"
+    return emu, replace(written, camera=replace(written.camera, response=response))
 
 
 def _hardware(
