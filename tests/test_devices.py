@@ -104,6 +104,16 @@ def test_optional_backends_say_which_package_is_missing(monkeypatch) -> None:
         GenICamCamera("producer.cti")
 
 
+def test_genicam_needs_a_producer_file(tmp_path: Path) -> None:
+    pytest.importorskip("harvesters.core")  # optional: the message before it is tested above
+    from viewcomp.calib.hw.genicam_camera import GenICamCamera
+
+    with pytest.raises(DeviceError, match=r"no GenTL producer file .*missing\.cti"):
+        GenICamCamera(str(tmp_path / "missing.cti"))
+    with pytest.raises(DeviceError, match=r"PRODUCER\.cti\[#SERIAL\]"):
+        GenICamCamera("camera-1")
+
+
 def test_gphoto2_choices_to_seconds_and_gain() -> None:
     assert parse_shutter("1/60") == pytest.approx(1 / 60)
     assert parse_shutter("0.5") == 0.5 and parse_shutter('2"') == 2.0

@@ -16,6 +16,7 @@ converted to a linear factor over its minimum), ``auto_exposure`` = ``ExposureAu
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,6 +43,11 @@ class GenICamCamera:
             raise DeviceError(
                 f"--camera {spec!r}: the genicam backend takes PRODUCER.cti[#SERIAL], the "
                 "camera maker's GenTL producer file (e.g. from its SDK) and a serial number"
+            )
+        if not Path(cti).is_file():
+            raise DeviceError(
+                f"--camera {spec!r}: no GenTL producer file {cti}: give the path of the camera "
+                "maker's .cti (its SDK installs one, e.g. under /opt/<vendor>/lib)"
             )
         self._h = Harvester()
         try:

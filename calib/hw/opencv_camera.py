@@ -17,9 +17,9 @@ Timestamps: V4L2 stamps each buffer on ``CLOCK_MONOTONIC`` (``CAP_PROP_POS_MSEC`
 of :class:`~viewcomp.calib.hw.clock.MonotonicClock`: the frame's start is that stamp minus the
 exposure. Where the backend's stamp is not on that clock, the start is bounded from below by
 the reads: the driver queues at most ``queue`` frames (``CAP_PROP_BUFFERSIZE``), so the frame a
-read returns finished after the read ``queue`` reads earlier began, and one that made the read
-wait finished during it; its exposure began at most one exposure and one frame period before.
-Frames are therefore never taken as newer than they are.
+read returns finished after the read ``queue`` reads earlier began, and its exposure began at
+most one exposure and one frame period before that. Frames are therefore never taken as newer
+than they are (at the price of ``queue`` extra frames per capture).
 """
 
 from __future__ import annotations
@@ -208,10 +208,9 @@ class OpenCVCamera:
         exposure = self._exposures[-1][1]
         start = self._driver_start(back, exposure)
         if start is None:
-            # finished after the read `queue` reads ago began (or during this one, if it waited)
-            done_after = call if back - call >= 0.5 * self.period else self._starts[0]
-            if len(self._starts) <= self.queue and back - call < 0.5 * self.period:
-                done_after = -math.inf
+            # finished after the read `queue` reads ago began (how long a read blocked is no
+            # proof: decoding a queued frame can take as long as waiting for a new one)
+            done_after = self._starts[0] if len(self._starts) > self.queue else -math.inf
             start = done_after - exposure - self.period
         self._seq += 1
         if image.ndim == 3 and image.shape[2] == 3:

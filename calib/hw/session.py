@@ -116,7 +116,11 @@ class Session:
         not_before = self.projector.show(pattern) + self.latency + self.settle
         if self.bracket is None:
             cam = self.camera
-            exp = cam.get("exposure") if "exposure" in cam.controls() else None
-            gain = cam.get("gain") if "gain" in cam.controls() else None
+            have = cam.controls()
+            # frames must be at the settings read back, unless the camera sets them itself
+            # (--allow-auto with automatic exposure left on)
+            auto = "auto_exposure" in have and cam.get("auto_exposure") != 0
+            exp = cam.get("exposure") if "exposure" in have and not auto else None
+            gain = cam.get("gain") if "gain" in have and not auto else None
             return self.reader.average(self.frames, not_before, exp, gain, what), None
         return self.bracket.grab(self.frames, not_before, what)
