@@ -311,7 +311,8 @@ with projector.GlfwProjector(0) as proj:
     rng = np.random.default_rng(0)
     for _ in range(2):
         img = rng.integers(0, 256, (200, 320, 3), dtype=np.uint8)
-        proj.show(img)
+        t = proj.show(img)
+        assert isinstance(t, float) and proj.refresh_hz > 0
         np.testing.assert_array_equal(proj.read_back(), img)
     try:
         proj.show(np.zeros((200, 320, 3), np.float32))

@@ -29,6 +29,7 @@ from viewcomp.calib.fit.pixel import (
     ScreenModel,
     calibrate_pixel,
 )
+from viewcomp.calib.hw.mono import MONO_REFUSAL, is_mono_set
 from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
@@ -257,6 +258,8 @@ def calibrate(
             the per-pixel method alone and ``info["paper_error"]`` says why.
     """
     geometry_stats = None
+    if is_mono_set([cs.white[n] for n in ("red", "green", "blue") if n in cs.white]):
+        raise FitError("white/red", MONO_REFUSAL)
     if cs.rig.capture.space != "projector":
         from viewcomp.calib.geo.rectify import (
             rectify_capture_set,  # camera frames -> the projector grid

@@ -27,7 +27,8 @@ a set that is written calibrates. A refused capture raises
 :class:`~viewcomp.calib.io.imageio.CaptureError` (or ``FitError``) and nothing is written.
 
 With an HDR bracket (``hdr_stops``, `capture --hdr`), each capture is the camera's frames at
-every relative exposure (:class:`Bracket`), merged into float32 linear light as it is taken;
+every relative exposure (:class:`~viewcomp.calib.hw.bracket.Bracket`, whole projector refresh
+periods), merged into float32 linear light as it is taken;
 "saturated" then means clipped even in the shortest exposure, and the set is written as
 ``.npy``.
 
@@ -43,14 +44,16 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.hw.bracket import Bracket
 from viewcomp.calib.hw.camlock import lock_controls
 from viewcomp.calib.hw.clock import MonotonicClock
 from viewcomp.calib.hw.interface import Camera, Clock, Projector
-from viewcomp.calib.hw.latency import MAX_LATENCY, measure_latency
 from viewcomp.calib.hw.livechecks import LiveChecks
+from viewcomp.calib.hw.mono import MONO_LIMITS
+from viewcomp.calib.hw.monochecks import MonoChecks
 from viewcomp.calib.hw.plan import Step, capture_plan
+from viewcomp.calib.hw.progress import Progress
 from viewcomp.calib.hw.reader import FrameReader
+from viewcomp.calib.hw.session import Session
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import check_captures
@@ -145,7 +148,7 @@ def run_capture(
     clock: Clock | None = None,
     response: str | float | None = None,
     hdr_stops: tuple[float, ...] | None = None,
-    exposure: float | None = None,
+    exposure: float | str | None = None,
     allow_auto: bool = False,
     retries: int = 3,
 ) -> list[Path]:
@@ -166,10 +169,14 @@ def run_capture(
             one), ``"estimate"`` estimates it from the Gray-code captures (light adds up:
             :func:`viewcomp.calib.geo.camresponse.estimate_response`), otherwise a rig.toml value.
         hdr_stops: None for one exposure per capture (encoded codes, written as PNG); or the
-            relative exposures of an HDR bracket (:class:`Bracket`): every capture is taken at
-            each and merged, written as float32 linear ``.npy``. Needs a known response (not
-            ``"estimate"``) and a camera whose exposure can be set.
-        exposure: the camera's exposure in seconds; None keeps the camera's.
+            relative exposures of an HDR bracket (:class:`~viewcomp.calib.hw.bracket.Bracket`,
+            whole projector refresh periods): every capture is taken at each and merged,
+            written as float32 linear ``.npy``. Needs a camera whose exposure can be set;
+            with ``response="estimate"`` the response is estimated from a bracket of the ramp
+            (OpenCV's Debevec) before the captures.
+        exposure: the camera's exposure in seconds; ``"auto"`` searches it
+            (:mod:`~viewcomp.calib.hw.autoexposure`) with the white screen up; None keeps
+            the camera's.
         allow_auto: go on (with a warning) when the camera's automatic exposure or white
             balance cannot be switched off; otherwise that is an error.
         retries: failed reads retried in a row before the camera counts as gone.
@@ -180,18 +187,12 @@ def run_capture(
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
     from viewcomp.calib.geo.camresponse import estimate_set_response
-    from viewcomp.calib.geo.rectify import rectify_capture_set
+    from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
 
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
     if settle < 0:
         raise ValueError(f"settle must be >= 0 seconds, got {settle}")
-    if hdr_stops is not None and response == "estimate":
-        raise CaptureError(
-            "--hdr needs the camera's response to merge the bracket: give --response "
-            "(srgb, linear or a gamma) or a --rig with one; estimating it from the Gray code "
-            "needs 8-bit captures"
-        )
     out = Path(out_dir)
     _check_writable(out)
     rig, incomplete = capture_rig(rig_template, projector.resolution, camera.resolution)
@@ -200,46 +201,51 @@ def run_capture(
     w, h = projector.resolution
     clock = clock if clock is not None else MonotonicClock()
     reader = FrameReader(camera, clock, log, retries)
-    for p in lock_controls(camera, allow_auto, exposure):
+    fixed = None if exposure is None or exposure == "auto" else float(exposure)
+    for p in lock_controls(camera, allow_auto, fixed):
         log(f"warning: {p}")
-    checks = LiveChecks(rig.camera.response_curve(), (w, h))
-    bracket = (
-        None
-        if hdr_stops is None
-        else Bracket(camera, reader, clock, hdr_stops, rig.camera.response_curve(), log)
-    )
-    latency = MAX_LATENCY
-
-    def take(pattern: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray | None]:
-        """Show ``pattern`` and capture it: (encoded codes, None), or with a bracket (merged
-        float32 linear, pixel-channels clipped in every frame)."""
-        not_before = projector.show(pattern) + latency + settle
-        if bracket is None:
-            exp = camera.get("exposure") if "exposure" in camera.controls() else None
-            return reader.average(frames, not_before, exposure=exp, what=what), None
-        return bracket.grab(frames, not_before, what)
-
+    if camera.channels == 1:
+        log(f"warning: {camera.name} is mono: {MONO_LIMITS}")
+    session = Session(projector, camera, clock, reader, log, frames, settle)
+    checks: LiveChecks | None = None
     captured: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     plan = capture_plan(w, h)
+    progress = Progress(len(plan), clock, log)
     stage = ""
-    for i, step in enumerate(plan):
+    for step in plan:
         if step.sub != stage:
-            if stage:
-                _end_of_stage(stage, checks, take, plan)
+            if stage and checks is not None:
+                _end_of_stage(stage, checks, session.take, plan)
             stage = step.sub
             if not prompt(stage, STAGE_MESSAGES[stage]):
                 raise CaptureError("capture stopped by the user; nothing was written")
-            if i == 0:
-                latency = _latency(projector, reader, clock, camera, log)
-        image, clipped = take(step.pattern, f"{step.sub}/{step.name}")
+            if checks is None:
+                found = session.prepare(
+                    exposure == "auto",
+                    hdr_stops,
+                    rig.camera.response_curve(),
+                    hdr_stops is not None and response == "estimate",
+                )
+                if found is not None:
+                    rig = replace(rig, camera=replace(rig.camera, response=found.spec))
+                checks = (MonoChecks if camera.channels == 1 else LiveChecks)(
+                    rig.camera.response_curve(), (w, h)
+                )
+                progress.start()
+        rel = f"{step.sub}/{step.name}"
+        image, clipped = session.take(step.pattern, rel)
         if clipped is None:
             checks.check(step.sub, step.name, image)
         else:
             checks.check_merged(step.sub, step.name, image, clipped)
-        captured[step.sub][step.name] = image
-        log(f"{step.sub}/{step.name} ({i + 1}/{len(plan)})")
-    _end_of_stage(stage, checks, take, plan)
+        if not getattr(step, "check_only", False):  # a step only checked is not written
+            captured[step.sub][step.name] = image
+        progress.step(rel)
+    if checks is not None:
+        _end_of_stage(stage, checks, session.take, plan)
     projector.show(np.zeros((h, w, 3), np.uint8))
+    if session.bracket is not None and response == "estimate":
+        response = None  # estimated from the brackets, not from the Gray code
 
     cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
     if response == "estimate":
@@ -247,9 +253,14 @@ def run_capture(
         log(f"camera response estimated from the Gray code: {found.spec!r} (misfit {misfit:.4f})")
         rig = replace(rig, camera=replace(rig.camera, response=found.spec))
         cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
-    log("checking the set as `viewcomp calibrate` will (geometry, saturation, order)")
-    rectified, stats = rectify_capture_set(cs)
-    check_captures(rectified)
+    if camera.channels == 1:
+        # colour order and mixing cannot be checked in a mono set (calibrate refuses it)
+        log("checking the set's geometry as `viewcomp calibrate` will")
+        stats = dict(calibrate_geometry(cs).stats)
+    else:
+        log("checking the set as `viewcomp calibrate` will (geometry, saturation, order)")
+        rectified, stats = rectify_capture_set(cs)
+        check_captures(rectified)
     log(
         f"geometry: Zhang reprojection {stats['chessboard']['zhang_rms_px']:.3f} px RMS, "
         f"Gray-code map {stats['graycode']['rms_px']:.3f} px RMS, chessboard vs map "
@@ -261,22 +272,6 @@ def run_capture(
             f.write((COMPLETE_HEADER + rig_to_toml(rig)).encode("utf-8"))
         log(f"{out / RIG_FILE}: complete the geometry (see its first lines) before calibrating")
     return paths
-
-
-def _latency(
-    projector: Projector, reader: FrameReader, clock: Clock, camera: Camera, log: Log
-) -> float:
-    """The measured projector -> camera latency (s); :data:`MAX_LATENCY` when the camera saw
-    no change (the live checks then say what it does not see)."""
-    found = measure_latency(projector, reader, clock)
-    if found is None:
-        log(
-            f"warning: {camera.name} saw no change from a black to a white screen; waiting "
-            f"{MAX_LATENCY:g} s after each pattern"
-        )
-        return MAX_LATENCY
-    log(f"projector -> camera latency: {found * 1000:.0f} ms (earlier frames are dropped)")
-    return found
 
 
 def _end_of_stage(

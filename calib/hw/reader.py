@@ -25,6 +25,9 @@ Log = Callable[[str], None]
 
 #: Seconds a fresh frame may take beyond ``not_before`` plus a few frames' exposure.
 FRESH_TIMEOUT = 5.0
+#: Stale frames read, on a clock that has not moved, before giving up (a simulated clock that
+#: does not move while a driver returns queued frames at once would never reach the deadline).
+MAX_STALE = 2000
 
 
 class FrameReader:
@@ -75,14 +78,16 @@ class FrameReader:
         them back. Raises DeviceError (naming ``what``) when none comes in time."""
         waited = 0
         longest = max(exposure or 0.0, 1.0 / 30.0)
-        deadline = max(self.clock.now(), not_before) + FRESH_TIMEOUT + 8 * longest
+        called = self.clock.now()
+        deadline = max(called, not_before) + FRESH_TIMEOUT + 8 * longest
         while True:
             f = self.grab()
             if f.timestamp >= not_before and _same(f.exposure, exposure) and _same(f.gain, gain):
                 return f
             self.dropped += 1
             waited += 1
-            if self.clock.now() > deadline:
+            now = self.clock.now()
+            if now > deadline or (waited >= MAX_STALE and now == called):
                 want = f"started at or after {not_before:.3f} s"
                 if exposure is not None:
                     want += f" at exposure {exposure:.6g} s"

@@ -10,17 +10,16 @@ with on real devices:
   seconds after the swap;
 - the camera free-runs at ``fps`` (slower when the exposure is longer than a frame), each
   frame integrating the light over its exposure (a pattern change during it blends the two);
-  the driver keeps the last ``queue`` finished frames, so a grab may return a frame older than
-  the call;
+  the driver keeps the last ``queue`` (>= 1) finished frames, so a grab may return a frame
+  older than the call;
 - controls take effect at the next frame start and read back; the automatic modes start on,
   and can refuse to switch off (``lockable=False``);
 - reads can fail (``fail_reads``: the grab numbers that raise FrameError) and the device can
   die (``dead_after``: grabs after which every read raises DeviceError);
 - ``channels=1``: a mono camera (the mean of the three channels' light).
 
-Exposure is in seconds, and 1 s of exposure at gain 1 gives the simulator's unit exposure
-(its ``CameraPhysics.exposure`` is the starting exposure in seconds): the simulated scene is
-that dim, so that simulated brackets stay in the simulator's calibrated range.
+Exposure is in seconds: ``unit_exposure`` seconds (default 1) at gain 1 give the simulator's
+unit exposure, and the camera starts at ``CameraPhysics.exposure`` units (default 0.8 s).
 """
 
 from __future__ import annotations
@@ -63,6 +62,7 @@ class SimulatedRig:
         lockable: bool = True,
         fail_reads: tuple[int, ...] = (),
         dead_after: int | None = None,
+        unit_exposure: float = 1.0,
     ) -> None:
         from viewcomp.calib.sim.simcamera import SimCamera
 
@@ -75,11 +75,12 @@ class SimulatedRig:
         self.latency = float(latency)
         self.refresh_hz = float(refresh_hz)
         self.fps = float(fps)
-        self.queue = max(0, int(queue))
+        self.queue = max(1, int(queue))
         self.channels = channels
         self.lockable = lockable
         self.fail_reads = set(fail_reads)
         self.dead_after = dead_after
+        self.unit_exposure = float(unit_exposure)
         self._cam = SimCamera(sim)
         self._noise_sim = replace(sim, camera=replace(sim.camera, frames=1))
         w, h = sim.rig.projector.resolution
@@ -93,7 +94,7 @@ class SimulatedRig:
         self._move: tuple[str, int, tuple[float, float, float]] | None = None
         self._shows_on_screen = 0
         self.controls: dict[str, float] = {
-            "exposure": float(sim.camera.exposure),
+            "exposure": float(sim.camera.exposure) * self.unit_exposure,
             "gain": 1.0,
             "auto_exposure": 1.0,
             "auto_white_balance": 1.0,
@@ -197,7 +198,8 @@ class SimulatedRig:
         start, exposure, gain, seq = self._done.pop(0)
         if self._grabs in self.fail_reads:
             raise FrameError(f"simulated camera: read {self._grabs} failed (a dropped transfer)")
-        lin = self._light(start, exposure) * np.float32(exposure * gain / self.sim.camera.exposure)
+        units = exposure * gain / (self.unit_exposure * self.sim.camera.exposure)
+        lin = self._light(start, exposure) * np.float32(units)
         noisy = self._noise_sim.noise(lin, f"{self._screen_name}/grab{self._grabs}")
         if self.channels == 1:
             noisy = noisy.mean(axis=2)

@@ -34,7 +34,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "capture is refused.",
     )
     p.add_argument("out_dir", nargs="?", help="capture-set folder to write (new or empty)")
-    p.add_argument("--camera", type=int, help="OpenCV camera index (0 is the first)")
+    p.add_argument(
+        "--camera",
+        default=None,
+        help="the camera, as the backend names it: an OpenCV index (0 is the first), a gphoto2 "
+        "model or port, PRODUCER.cti[#SERIAL] for genicam, anything for a plug-in",
+    )
+    p.add_argument(
+        "--camera-backend",
+        default="opencv",
+        help="opencv (default), gphoto2 (DSLRs; pip install gphoto2), genicam (machine vision "
+        "through a GenTL producer; pip install harvesters), or module:factory, a plug-in: "
+        "factory(spec) -> Camera in an importable module, called with --camera",
+    )
     p.add_argument("--monitor", type=int, help="the projector's monitor (see --list-monitors)")
     p.add_argument("--frames", type=int, default=8, help="frames averaged per capture (default 8)")
     p.add_argument(
@@ -49,7 +61,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         help="camera exposure in seconds (with --simulate: 1 s is the simulator's unit "
-        "exposure, default 0.8); with --hdr the bracket's longest exposure",
+        "exposure); with --hdr the bracket's longest exposure. Default: searched with the "
+        "white screen up, so that the brightest pattern's lit region reaches 80%% of full scale",
+    )
+    p.add_argument(
+        "--retries",
+        type=int,
+        default=3,
+        help="failed camera reads retried in a row before the camera counts as gone (default 3)",
     )
     p.add_argument(
         "--allow-auto",
@@ -129,12 +148,16 @@ def run(args: argparse.Namespace) -> int:
     if args.out_dir is None:
         raise UsageError("give the capture-set folder OUT_DIR")
     _check_out_dir(args)
+    if args.retries < 0:
+        raise UsageError(f"--retries must be >= 0, got {args.retries}")
     if args.frames < 1:
         raise UsageError(f"--frames must be at least 1, got {args.frames}")
     if args.settle is not None and args.settle < 0:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
     faults = _emulator_faults(args)
-    if not (args.simulate or args.emulate) and (args.camera is None or args.monitor is None):
+    if not (args.simulate or args.emulate) and (
+        (args.camera is None and args.camera_backend == "opencv") or args.monitor is None
+    ):
         raise UsageError(
             "give --camera N and --monitor M (or --simulate or --emulate for no hardware)"
         )
@@ -145,12 +168,7 @@ def run(args: argparse.Namespace) -> int:
     template = load_rig(args.rig) if args.rig else None
     response = args.response
     if response is None and template is None and not (args.simulate or args.emulate):
-        if args.hdr:
-            raise UsageError(
-                "--hdr needs the camera's response to merge the bracket: give --response "
-                "srgb|linear|GAMMA or a --rig with one (estimating it needs 8-bit captures)"
-            )
-        response = "estimate"
+        response = "estimate"  # with --hdr: from a bracket (Debevec), else from the Gray code
     if response is not None and response != "estimate":
         from viewcomp.calib.world.response import parse_response
 
@@ -206,8 +224,9 @@ def run(args: argparse.Namespace) -> int:
             clock=clock,
             response=response,
             hdr_stops=DEFAULT_STOPS if args.hdr else None,
-            exposure=None if args.simulate else args.exposure,
+            exposure=_exposure(args),
             allow_auto=args.allow_auto,
+            retries=args.retries,
         )
     finally:
         projector.close()
@@ -216,6 +235,14 @@ def run(args: argparse.Namespace) -> int:
             print(f"emulated devices' clock: {clock.now():.1f} s", file=sys.stderr)
     print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
     return 0
+
+
+def _exposure(args: argparse.Namespace) -> float | str | None:
+    """What run_capture is told: "auto" (search) without --exposure; the seconds given on
+    hardware; None with --simulate (the simulated camera starts at --exposure)."""
+    if args.exposure is None:
+        return "auto"
+    return None if args.simulate else float(args.exposure)
 
 
 def _interactive() -> bool:
@@ -328,15 +355,18 @@ def _hardware(
     parse_size: Callable[[str], tuple[int, int]],
     clock: MonotonicClock,
 ) -> tuple[Projector, Camera]:
-    """The glfw projector on --monitor and the OpenCV camera --camera, on ``clock``."""
-    from viewcomp.calib.hw.opencv_camera import OpenCVCamera
+    """The glfw projector on --monitor and the camera --camera of --camera-backend, on
+    ``clock``."""
+    from viewcomp.calib.hw.backends import open_camera
     from viewcomp.rt.play.projector import GlfwProjector
 
     if args.exposure is not None and not args.exposure > 0:
         raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     cam_size = parse_size(args.camera_size) if args.camera_size else None
-    camera = OpenCVCamera(args.camera, size=cam_size, clock=clock)
-    print(f"{camera.name}: exposure {camera.units}", file=sys.stderr)
+    camera = open_camera(args.camera_backend, args.camera or "", clock, cam_size)
+    units = getattr(camera, "units", None)
+    if units:
+        print(f"{camera.name}: exposure {units}", file=sys.stderr)
     try:
         projector = GlfwProjector(args.monitor, clock=clock)
     except BaseException:
