@@ -5,8 +5,12 @@ that the lit region's brightest codes sit just below clipping: the 99.5th percen
 frame's largest channel at :data:`TARGET` (80 %) of full scale. Exposures are whole numbers of
 projector refresh periods when at least one period is needed (a DLP's colour sub-frames and PWM
 bit planes only add up over whole periods). The gain stays at its base (1) unless the longest
-exposure allowed (:data:`MAX_EXPOSURE`, or the control's range) is still too dark; then the
-gain is raised. Each step reads the control back and measures a fresh frame taken at it.
+exposure allowed (:data:`MAX_EXPOSURE`, or the control's range) is still too dark, or whole
+periods step past the target (at 60 Hz a webcam has 16.7 or 33.3 ms: 43 % or 86 % of full
+scale on one screen); then the whole periods below the target and the gain make up the rest.
+A camera without gain whose whole periods cannot reach the target keeps the tried exposure
+closest to it that does not clip (at least :data:`ACCEPT_LOW` of full scale). Each step reads
+the control back and measures a fresh frame taken at it.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ PERCENTILE = 99.5
 MAX_EXPOSURE = 2.0  # s: longer makes a capture of ~40 patterns too slow
 MAX_STEPS = 12
 CLIPPED = 0.985
+ACCEPT_LOW = 0.3  # of full scale: the least a closest-reachable exposure may give
 
 
 def whole_periods(seconds: float, refresh_hz: float) -> float:
@@ -70,6 +75,7 @@ def search_exposure(
     exposure = camera.get("exposure")
     gain = camera.get("gain") if "gain" in have else 1.0
     level = 0.0
+    best: tuple[float, float, float] | None = None  # (level, exposure, gain) unclipped
     for _ in range(MAX_STEPS):
         f = reader.fresh(max(t + latency, reader.clock.now()), exposure, None, "exposure search")
         exposure, gain = f.exposure, f.gain
@@ -80,6 +86,8 @@ def search_exposure(
                 f"screen's brightest codes at {level:.0%} of full scale"
             )
             return exposure, gain
+        if level < CLIPPED and (best is None or abs(level - TARGET) < abs(best[0] - TARGET)):
+            best = (level, exposure, gain)
         if level >= CLIPPED:
             want = exposure * gain / 4  # clipped: how far is unknown, step down
         elif level <= 0.02:
@@ -99,6 +107,11 @@ def search_exposure(
                 "aperture or add an ND filter, and capture again"
             )
         new_exp = whole_periods(new_exp, projector.refresh_hz)
+        period = 1.0 / projector.refresh_hz
+        below = math.floor(want / period * (1 + 1e-9)) * period
+        if new_exp > want * (1 + 1e-3) and below >= period and g_hi > 1.0:
+            # whole periods overshoot: the periods below the target, the gain for the rest
+            new_exp, new_gain = below, min(g_hi, want / below)
         if math.isclose(new_exp, exposure, rel_tol=1e-3) and math.isclose(
             new_gain, gain, rel_tol=1e-3
         ):
@@ -106,6 +119,17 @@ def search_exposure(
         exposure = camera.set("exposure", new_exp)
         if "gain" in have:
             gain = camera.set("gain", new_gain)
+    if best is not None and best[0] >= ACCEPT_LOW:
+        level, exposure, gain = best
+        exposure = camera.set("exposure", exposure)
+        if "gain" in have:
+            gain = camera.set("gain", gain)
+        log(
+            f"exposure search: {exposure * 1000:.4g} ms at gain {gain:.3g} puts the white "
+            f"screen's brightest codes at {level:.0%} of full scale, the closest to "
+            f"{TARGET:.0%} that whole refresh periods reach without clipping"
+        )
+        return exposure, gain
     raise DeviceError(
         f"{camera.name}: the exposure search did not converge (last {exposure * 1000:.4g} ms at "
         f"gain {gain:.3g}: brightest codes at {level:.0%} of full scale, want {TARGET:.0%}): "
