@@ -63,6 +63,7 @@ from viewcomp.calib.geo.checks import (
 )
 from viewcomp.calib.geo.chessboard import Corners, find_corners, zhang
 from viewcomp.calib.geo.graycode import GrayCode, check_planes, decode_graycode
+from viewcomp.calib.geo.phaseshift import decode_phase, has_phase, with_phase
 from viewcomp.calib.geo.projmap import (
     ProjectorMap,
     fill_border,
@@ -141,6 +142,12 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
     mover = MoveCheck(screen)
     gc = decode_graycode(screen, size, on_pair=lambda n, img: mover(screen, n, img))
     stats["response"] = check_response(gc, screen.response, "rig.toml")
+    # with the phase-shift captures: sub-pixel positions, the Gray code's unresolved fine
+    # planes dropped; without (a set captured before they were added): the Gray code alone
+    phase = None
+    if has_phase(screen):
+        phase = decode_phase(screen, gc, on_axis=lambda n, img: mover(screen, n, img))
+        gc = with_phase(gc, phase)
     gc_rel = screen.rel(gc.names[0])
     mover.flush(lambda: check_coverage(gc, size, gc_rel))
     for caps in (white, screen):
@@ -149,7 +156,7 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
                 mover(caps, n, caps.get(n), lambda: check_coverage(gc, size, gc_rel))
     stats["max_frame_shift_px"] = round(mover.worst, 4)
     pred, region, h_cb = predict_from_chessboard(corners, k, dist, shape)
-    agreement = check_planes(gc, screen, pred, region)
+    agreement = check_planes(gc, screen, pred, region, None if phase is None else phase.planes)
     check_coverage(gc, size, screen.rel(gc.names[0]))
     ok = gc.column >= 0
     lit_frac = float(ok.sum()) / max(int(gc.lit.sum()), 1)
@@ -166,9 +173,7 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
     step = max(1, int(np.ceil(len(xs) / MAX_DENSE_POINTS)))
     sel = slice(None, None, step)
     cam_pts = np.stack([xs[sel], ys[sel]], 1).astype(np.float64)
-    proj_pts = np.stack([gc.column[ys[sel], xs[sel]], gc.row[ys[sel], xs[sel]]], 1).astype(
-        np.float64
-    )
+    proj_pts = gc.positions()[ys[sel], xs[sel]]  # sub-pixel with phase shifting
     cu, cv = (size[0] - 1) / 2.0, (size[1] - 1) / 2.0
     norm = np.array([[1 / cu, 0, -1], [0, 1 / cv, -1], [0, 0, 1]])
     h0 = h_cb @ np.linalg.inv(norm)
@@ -180,6 +185,8 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
         "plane_agreement_min": min(agreement.values()) if agreement else None,
         **fit,
     }
+    if phase is not None:
+        stats["phase"] = phase.stats
     stats["map"] = {
         "model": "camera = K dist(H [s, t, 1]) + cubic(s, t)",
         "distortion": [round(float(v), 5) for v in pmap.distortion],
