@@ -2,7 +2,8 @@
 coarse Gray code.
 
 The captures ``phase_col_0`` ... ``phase_col_{N-1}`` show a sinusoid along the projector's
-columns, level(u) = (1 + cos(2 pi u / P - 2 pi n / N)) / 2 (:func:`~viewcomp.calib.io.patterns.
+columns, level(u) = F + (255 - F) (1 + cos(2 pi u / P - 2 pi n / N)) / 2 with F the floor
+:data:`~viewcomp.calib.io.patterns.PHASE_FLOOR` (:func:`~viewcomp.calib.io.patterns.
 phase_patterns`), and ``phase_row_n`` the same along its rows. A camera pixel that sees
 projector position u records I_n = A + B cos(phi - 2 pi n / N) with phi = 2 pi u / P, so
 
@@ -17,9 +18,10 @@ into one of the same phase.
 **The projector's response.** The light is f(level), not the level: a power law near 2.2
 adds harmonics k = 2, 3, ... of phi. With N shifts a harmonic k falls onto the fundamental
 only when k = +-1 (mod N); every other cancels in the sums above. So no response has to be
-measured: with N = 8 shifts only harmonics 7 and 9 remain, which a gamma-2.4 response
-carries at ~1e-4 of the fundamental (phase error ~0.005 px RMS for P = 32, against ~1 px with
-N = 3 and ~0.08 px with N = 4, where harmonic 2 resp. 3 alias).
+measured: N = 8 shifts leave only harmonics 7 and 9. Measured on a gamma-2.4 response over
+one period at 0.1-px steps (the 8-bit patterns included): with levels 0..255, 1.17 px RMS
+phase error with N = 3 (harmonic 2 aliases), 0.085 px with N = 4, 0.005 px with N = 8; with
+the floor F = 192 the patterns' 8-bit rounding dominates (0.18, 0.045, 0.033 px).
 
 **Unwrapping.** The Gray code's coarse planes (those the camera resolves,
 :func:`~viewcomp.calib.geo.graycode.resolved_planes`) place the pixel in an interval of
@@ -39,6 +41,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from viewcomp.calib.errors import FitError
@@ -49,6 +52,9 @@ from viewcomp.calib.io.patterns import PHASE_AXES, PHASE_PERIOD, PHASE_SHIFTS, p
 # B / (white - black) below which a pixel's phase is not trusted: the sinusoid is not
 # resolved there (a pixel half off the frame, a dark spot, a blurred or too coarse camera)
 MIN_MODULATION = 0.12
+# white - black below this fraction of its maximum over the 5 x 5 camera pixels around: a
+# pixel that the optics mix with the unlit surround, whose phase the dark side biases
+WHOLE_FRACTION = 0.9
 
 
 @dataclass(frozen=True)
@@ -57,7 +63,9 @@ class PhaseMap:
 
     ``position`` (Hc, Wc, 2) float64 projector (u, v) in pixels (centres at integers), NaN
     where not decoded; ``ok`` (Hc, Wc) bool where decoded; ``modulation`` (2, Hc, Wc) float32
-    B / (white - black) per axis (u, v), 0..~0.6; ``planes`` the indices of the Gray-code
+    B / (white - black) per axis (u, v), 0..~0.6; ``whole`` (Hc, Wc) bool the decoded pixels
+    that see the projector's frame whole (not mixed with the unlit surround by blur: their
+    phase is unbiased, the ones for a fit); ``planes`` the indices of the Gray-code
     planes used to unwrap; ``stats`` JSON-ready numbers (pixels decoded, dropped as
     inconsistent, the finest stripe kept).
     """
@@ -65,6 +73,7 @@ class PhaseMap:
     position: np.ndarray
     ok: np.ndarray
     modulation: np.ndarray
+    whole: np.ndarray
     planes: tuple[int, ...]
     stats: dict[str, float | int | list[int]]
 
@@ -202,6 +211,8 @@ def decode_phase(
         ok &= good & fits
         position[..., a] = u
     position[~ok] = np.nan
+    near_max = cv2.dilate(rng.astype(np.float32), np.ones((5, 5), np.uint8))
+    whole = ok & (rng >= WHOLE_FRACTION * near_max)
     lit = int(np.count_nonzero(gc.lit))
     stats: dict[str, float | int | list[int]] = {
         "period_px": period,
@@ -212,7 +223,7 @@ def decode_phase(
         "graycode_planes_dropped": len(widths) - len(used),
         "finest_stripe_used_px": finest,
     }
-    return PhaseMap(position, ok, modulation, tuple(used), stats)
+    return PhaseMap(position, ok, modulation, whole, tuple(used), stats)
 
 
 def with_phase(gc: GrayCode, pm: PhaseMap) -> GrayCode:

@@ -169,7 +169,8 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
         )
 
     # 3. the dense map
-    ys, xs = np.nonzero(ok)
+    # the fit takes the pixels that see the frame whole: at its edge blur biases the phase
+    ys, xs = np.nonzero(ok if phase is None else phase.whole)
     step = max(1, int(np.ceil(len(xs) / MAX_DENSE_POINTS)))
     sel = slice(None, None, step)
     cam_pts = np.stack([xs[sel], ys[sel]], 1).astype(np.float64)

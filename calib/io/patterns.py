@@ -124,6 +124,13 @@ def graycode_patterns(w: int, h: int) -> tuple[list[np.ndarray], np.ndarray, np.
 # :mod:`viewcomp.calib.geo.phaseshift`).
 PHASE_PERIOD = 32
 PHASE_SHIFTS = 8
+# The sinusoids' lowest level: the projector's frame stays brightly lit all round in every
+# shift. A sinusoid from 0 leaves the frame's left and right edges dark in some shifts, and the
+# live camera-moved check, which matches the frame's edges with the gray capture's, then reads
+# shifts near its 1-camera-px limit (0.85 px at 0.6 camera px per projector px with a floor of
+# 128, 0.41 px with 192). The cost: about half the modulation (the phase stays far more
+# precise than needed).
+PHASE_FLOOR = 192
 PHASE_AXES = ("col", "row")
 
 
@@ -138,10 +145,10 @@ def phase_patterns(
 ) -> dict[str, np.ndarray]:
     """Phase-shifted sinusoids, by capture name (:func:`phase_names`), each (h, w, 3) uint8.
 
-    ``phase_col_n`` at projector pixel (u, v) is round(255 (1 + cos(2 pi u / period -
-    2 pi n / shifts)) / 2) in every channel (halves rounded up), constant along v; ``phase_row_n``
-    the same in v. So the phase 2 pi u / period is 0 at u = 0 (pixel centres at integers), and
-    shift n delays it by 2 pi n / shifts.
+    ``phase_col_n`` at projector pixel (u, v) is round(F + (255 - F) (1 + cos(2 pi u / period -
+    2 pi n / shifts)) / 2) in every channel (halves rounded up; F = :data:`PHASE_FLOOR`),
+    constant along v; ``phase_row_n`` the same in v. So the phase 2 pi u / period is 0 at
+    u = 0 (pixel centres at integers), and shift n delays it by 2 pi n / shifts.
     """
     _check_size(w, h)
     if not (isinstance(period, int) and period >= 4):
@@ -153,7 +160,7 @@ def phase_patterns(
         x = np.arange(size, dtype=np.float64)
         for n in range(shifts):
             wave = 0.5 + 0.5 * np.cos(2.0 * np.pi * (x / period - n / shifts))
-            line = np.floor(255.0 * wave + 0.5).astype(np.uint8)
+            line = np.floor(PHASE_FLOOR + (255.0 - PHASE_FLOOR) * wave + 0.5).astype(np.uint8)
             img = line[None, :] if axis == "col" else line[:, None]
             out[f"phase_{axis}_{n}"] = np.broadcast_to(img[..., None], (h, w, 3)).copy()
     return out
