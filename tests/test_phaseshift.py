@@ -13,6 +13,7 @@ from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.captures import Captures
 from viewcomp.calib.geo.graycode import decode_graycode, resolved_planes
 from viewcomp.calib.geo.phaseshift import coarse_position, decode_phase, has_phase, wrapped_phase
+from viewcomp.calib.geo.rectify import calibrate_geometry
 from viewcomp.calib.hw.plan import capture_plan
 from viewcomp.calib.io.captureset import capture_set_from_raw
 from viewcomp.calib.io.patterns import graycode_patterns, phase_names, phase_patterns
@@ -22,6 +23,7 @@ from viewcomp.calib.sim.simcamera import (
     geometric_patterns,
     scaled_camera_rig,
     true_camera_points,
+    true_projector_map,
     written_rig,
 )
 from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig
@@ -165,6 +167,20 @@ def test_a_coarse_camera_maps_the_projector_to_sub_pixels(coarse: CoarseWorld) -
     assert old.mean() < 0.6
 
 
+@pytest.mark.slow
+def test_a_coarse_camera_calibrates_the_geometry(coarse: CoarseWorld) -> None:
+    cs = coarse.captures().cs
+    geo = calibrate_geometry(cs)
+    assert geo.stats["phase"]["graycode_planes_dropped"] == 2  # the 2-px stripes
+    err = np.linalg.norm(np.stack(geo.map.grid(), -1) - true_projector_map(coarse.rig), axis=-1)
+    rms = float(np.sqrt(np.mean(err**2)))  # camera px; 0.6 camera px per projector px
+    assert rms / 0.6 < 0.05, f"map {rms / 0.6:.3f} projector px RMS from the truth"
+    # the Gray code alone, every bit reliable, does not decode enough of the frame
+    real = {k: v for k, v in coarse.real.items() if not k.startswith("phase_")}
+    with pytest.raises(FitError, match=r"only \d+% of the lit camera pixels decode"):
+        calibrate_geometry(coarse.captures(real).cs)
+
+
 def test_a_partial_set_of_phase_captures_is_refused(coarse: CoarseWorld) -> None:
     real = {k: v for k, v in coarse.real.items() if k != "phase_row_5"}
     with pytest.raises(FitError, match=r"screen/phase_row_5.*not found.*phase_col_0"):
@@ -180,3 +196,44 @@ def test_a_camera_too_coarse_for_the_period_is_refused(coarse: CoarseWorld) -> N
     # an 8-px period 2-px ones, which do not
     with pytest.raises(FitError, match=r"graycode_\d+.*2-px stripes.*move the camera closer"):
         decode_phase(caps, gc, period=8)
+
+
+def test_the_default_camera_samples_points_and_supersampling_integrates_pixels() -> None:
+    rig = coarse_rig(0.6)
+    sim = Simulator(rig=rig, seed=0)
+    w, h = SIZE
+    # one-pixel vertical stripes, far finer than the camera's 1.67 projector px per pixel
+    stripes = np.zeros((h, w, 3), np.uint8)
+    stripes[:, ::2] = 255
+    white = make_screen("white", "matte", shape=sim.shape)
+    point = SimCamera(sim, blur_px=0.0)
+    area = SimCamera(sim, blur_px=0.0, supersample=5)
+    # supersample=1 is the default camera, number for number
+    np.testing.assert_array_equal(
+        SimCamera(sim, supersample=1).linear(white, stripes), SimCamera(sim).linear(white, stripes)
+    )
+    full = point.linear(white, np.full((h, w, 3), 255, np.uint8))
+    inner = point.view.inside.copy()
+    inner[:, :3] = inner[:, -3:] = inner[:3] = inner[-3:] = False
+    for cam in (point, area):
+        assert cam.linear(white, stripes).shape == (*cam.shape, 3)
+    rel_point = point.linear(white, stripes)[inner] / full[inner]
+    rel_area = area.linear(white, stripes)[inner] / full[inner]
+    # a point sample lands anywhere between a lit and a dark projector pixel: 0..1 of white;
+    # a pixel's area (1.67 projector px wide) holds about half light, half dark
+    assert rel_point.std() > 0.2
+    assert abs(float(np.median(rel_area)) - 0.5) < 0.05 and rel_area.std() < 0.12
+    with pytest.raises(ValueError, match="supersample"):
+        SimCamera(sim, supersample=0)
+
+
+def test_simulated_camera_sets_hold_the_phase_captures(tmp_path) -> None:
+    from viewcomp.calib.io.captureset import read_capture_set
+    from viewcomp.calib.sim.simulate import simulate_capture_set
+
+    rig = simulation_rig()
+    rig = replace(rig, projector=replace(rig.projector, resolution=(160, 80)))
+    simulate_capture_set(tmp_path / "caps", space="camera", rig=scaled_camera_rig(rig, (160, 80)))
+    cs = read_capture_set(tmp_path / "caps")
+    assert {p.stem for p in cs.extra["screen"]} >= set(phase_names())
+    assert not {p.stem for p in cs.extra["white"]} & set(phase_names())
