@@ -55,6 +55,7 @@ MIN_MODULATION = 0.12
 # white - black below this fraction of its maximum over the 5 x 5 camera pixels around: a
 # pixel that the optics mix with the unlit surround, whose phase the dark side biases
 WHOLE_FRACTION = 0.9
+WHOLE_WINDOW = 5  # camera px
 
 
 @dataclass(frozen=True)
@@ -211,7 +212,7 @@ def decode_phase(
         ok &= good & fits
         position[..., a] = u
     position[~ok] = np.nan
-    near_max = cv2.dilate(rng.astype(np.float32), np.ones((5, 5), np.uint8))
+    near_max = cv2.dilate(rng.astype(np.float32), np.ones((WHOLE_WINDOW, WHOLE_WINDOW), np.uint8))
     whole = ok & (rng >= WHOLE_FRACTION * near_max)
     lit = int(np.count_nonzero(gc.lit))
     stats: dict[str, float | int | list[int]] = {

@@ -100,7 +100,12 @@ def run(args: argparse.Namespace) -> int:
                 f"  phase shifting ({ph['period_px']}-px period, {ph['shifts']} shifts): "
                 f"{ph['decoded_fraction_of_lit']:.1%} of the lit camera pixels at sub-pixel "
                 f"positions, unwrapped by {ph['graycode_planes_used']} Gray-code planes "
-                f"({ph['graycode_planes_dropped']} too fine for the camera, dropped)"
+                f"({ph['graycode_planes_dropped']} too fine for the camera, dropped); "
+                + (
+                    "the map is fitted to them"
+                    if ph.get("used_for_map")
+                    else "the camera resolves the whole Gray code, whose pixels the map keeps"
+                )
             )
     return 0
 
