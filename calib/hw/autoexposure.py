@@ -109,7 +109,9 @@ def search_exposure(
         new_exp = whole_periods(new_exp, projector.refresh_hz)
         period = 1.0 / projector.refresh_hz
         below = math.floor(want / period * (1 + 1e-9)) * period
-        if new_exp > want * (1 + 1e-3) and below >= period and g_hi > 1.0:
+        # light that still lands within the tolerance above the target
+        slack = ((TARGET + TOLERANCE) / TARGET) ** (1.0 if f.linear else 2.2)
+        if new_exp > want * slack and below >= period and g_hi > 1.0:
             # whole periods overshoot: the periods below the target, the gain for the rest
             new_exp, new_gain = below, min(g_hi, want / below)
         if math.isclose(new_exp, exposure, rel_tol=1e-3) and math.isclose(
