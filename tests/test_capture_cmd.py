@@ -17,10 +17,13 @@ import numpy as np
 import pytest
 
 from viewcomp.calib.fit.calibrate import Calibration
-from viewcomp.calib.hw import devices
-from viewcomp.calib.hw.devices import OpenCVCamera, SimulatedRig, average_frames
+from viewcomp.calib.hw.camlock import lock_controls
+from viewcomp.calib.hw.frames import average_frames
+from viewcomp.calib.hw.interface import DeviceError, Frame
+from viewcomp.calib.hw.opencv_camera import OpenCVCamera
 from viewcomp.calib.hw.plan import capture_plan
 from viewcomp.calib.hw.procedure import console_prompt, run_capture
+from viewcomp.calib.hw.simrig import SimulatedRig
 from viewcomp.calib.io.captureset import read_capture_set
 from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.sim.simcamera import scaled_camera_rig, written_rig
@@ -69,6 +72,7 @@ def _run(dev: SimulatedRig, out: Path, prompt=None, frames: int = 2) -> list[Pat
         log=lambda _: None,
         frames=frames,
         settle=0.0,
+        clock=dev.clock,
     )
 
 
@@ -113,7 +117,7 @@ def test_stopping_at_a_prompt_writes_nothing(tmp_path: Path) -> None:
 
 def test_a_camera_moved_during_the_capture_is_refused(tmp_path: Path) -> None:
     dev = _sim_rig()
-    dev.move_camera_after(10, (0.004, 0.0, 0.0))  # bumped tripod, 4 mm, during screen/
+    dev.move_camera_during("screen", 2, (0.004, 0.0, 0.0))  # bumped tripod, 4 mm, during screen/
     with pytest.raises(CaptureError, match=r"screen/\w+: .*camera moved"):
         _run(dev, tmp_path / "caps")
     assert not (tmp_path / "caps").exists()
@@ -159,6 +163,7 @@ def test_without_a_rig_the_rig_toml_is_to_complete(tmp_path: Path) -> None:
         log=lambda _: None,
         frames=1,
         settle=0.0,
+        clock=dev.clock,
     )
     text = (tmp_path / "caps" / "rig.toml").read_text()
     assert text.startswith("# TO COMPLETE")
@@ -234,12 +239,13 @@ class FakeCapture:
 
 def test_opencv_camera_locks_what_it_can_and_averages(monkeypatch) -> None:
     monkeypatch.setattr(cv2, "VideoCapture", FakeCapture)
-    cam = OpenCVCamera(0, flush=2)
+    cam = OpenCVCamera(0)
     assert cam.resolution == (6, 4)
-    problems = cam.lock()
+    problems = lock_controls(cam, allow_auto=True)
     text = " ".join(problems)
     assert "white balance" in text and "autofocus" in text and "exposure" not in text
-    img = cam.grab(3)  # frames 1 (opening) and 2, 3 flushed; 4, 5, 6 averaged
+    cam.grab(), cam.grab()
+    img = average_frames([cam.grab() for _ in range(3)])  # 1 (opening), 2, 3 dropped; 4, 5, 6
     assert img.dtype == np.uint16 and img.shape == (4, 6, 3)
     assert np.all(img[..., 0] == 200 * 257)  # red, from BGR's last channel
     assert np.all(img[..., 2] == 50 * 257)  # blue: mean of 40, 50, 60
@@ -249,18 +255,22 @@ def test_opencv_camera_locks_what_it_can_and_averages(monkeypatch) -> None:
 
 def test_opencv_camera_that_cannot_open_says_so(monkeypatch) -> None:
     monkeypatch.setattr(cv2, "VideoCapture", FakeCapture)
-    with pytest.raises(devices.DeviceError, match="cannot open camera 3"):
+    with pytest.raises(DeviceError, match="cannot open camera 3"):
         OpenCVCamera(3)
 
 
+def _frame(image: np.ndarray) -> Frame:
+    return Frame(image=image, timestamp=0.0, exposure=0.01, gain=1.0, sequence=0)
+
+
 def test_average_frames() -> None:
-    a = np.full((2, 2, 3), 10, np.uint8)
-    b = np.full((2, 2, 3), 11, np.uint8)
+    a = _frame(np.full((2, 2, 3), 10, np.uint8))
+    b = _frame(np.full((2, 2, 3), 11, np.uint8))
     assert average_frames([a]).dtype == np.uint8
     avg = average_frames([a, b])
     assert avg.dtype == np.uint16 and np.all(avg == round(10.5 * 257))
-    with pytest.raises(devices.DeviceError, match="changed its frame size"):
-        average_frames([a, np.zeros((3, 2, 3), np.uint8)])
+    with pytest.raises(DeviceError, match="changed its frame size"):
+        average_frames([a, _frame(np.zeros((3, 2, 3), np.uint8))])
 
 
 # -- the glfw projector on a virtual X server ---------------------------------------------
@@ -294,14 +304,15 @@ def xvfb() -> Iterator[str]:
 
 _PROJECTOR_SCRIPT = """
 import numpy as np
-from viewcomp.calib.hw import devices
+from viewcomp.calib.hw.interface import DeviceError
 from viewcomp.rt.play import projector
 with projector.GlfwProjector(0) as proj:
     assert proj.resolution == (320, 200), proj.resolution
     rng = np.random.default_rng(0)
     for _ in range(2):
         img = rng.integers(0, 256, (200, 320, 3), dtype=np.uint8)
-        proj.show(img)
+        t = proj.show(img)
+        assert isinstance(t, float) and proj.refresh_hz > 0
         np.testing.assert_array_equal(proj.read_back(), img)
     try:
         proj.show(np.zeros((200, 320, 3), np.float32))
@@ -311,7 +322,7 @@ with projector.GlfwProjector(0) as proj:
         raise AssertionError("a float image was shown")
 try:
     projector.GlfwProjector(5)
-except devices.DeviceError as e:
+except DeviceError as e:
     assert "no monitor 5" in str(e), e
 else:
     raise AssertionError("monitor 5 opened")
@@ -357,6 +368,7 @@ def test_the_response_can_be_estimated_at_capture(tmp_path: Path) -> None:
         log=lambda _: None,
         frames=2,
         settle=0.0,
+        clock=dev.clock,
         response="estimate",
     )
     found = load_rig(tmp_path / "caps" / "rig.toml").camera.response

@@ -116,8 +116,21 @@ def test_chessboard_and_reprojection_errors_are_reported(geometry) -> None:
     assert st["chessboard"]["white_vs_screen_px"] < 0.2
     assert st["map"]["chessboard_rms_px"] < 0.2
     assert 0.2 < st["graycode"]["rms_px"] < 0.7  # Gray code quantises to whole projector px
+    # the camera resolves every plane: the phase is decoded, the map keeps the Gray code
+    assert st["phase"]["decoded_fraction_of_lit"] > 0.95
+    assert st["phase"]["used_for_map"] is False
     assert st["graycode"]["plane_agreement_min"] > 0.95
     assert st["max_frame_shift_px"] < 0.3
+
+
+def test_a_set_without_phase_captures_calibrates_with_the_gray_code_alone(world) -> None:
+    real = {k: v for k, v in world.real.items() if not k.startswith("phase_")}
+    geo = calibrate_geometry(world.cs(real=real))
+    assert "phase" not in geo.stats and geo.graycode.subpixel is None
+    assert 0.2 < geo.stats["graycode"]["rms_px"] < 0.7  # whole projector pixels
+    truth = true_projector_map(world.rig)
+    err = np.linalg.norm(np.stack(geo.map.grid(), -1) - truth, axis=-1)
+    assert float(np.sqrt(np.mean(err**2))) < 0.1
 
 
 def test_rectified_chessboard_corners_land_on_the_projector_corners(world, geometry) -> None:

@@ -250,7 +250,7 @@ def write_report(out: Path, report: dict[str, Any], world: World, keep: dict[str
     report["tone_tradeoff"] = plot_tradeoff(world, out / "tonemap_tradeoff.png")
     md += ["## Tone map trade-off", "", "![](tonemap_tradeoff.png)", ""]
     md += [f"Run time: {report['seconds']} s.", ""]
-    _write_files(out, report, md)
+    write_report_files(out, report, md)
 
 
 def write_materials_report(out: Path, report: dict[str, Any]) -> None:
@@ -308,7 +308,7 @@ def write_materials_report(out: Path, report: dict[str, Any]) -> None:
     md += ["", "Criteria over the glossy materials (peak >= 10 x diffuse):", "", "```",
            json.dumps(report["materials_checks"], indent=1), "```", "",
            f"Run time: {report['seconds']} s.", ""]  # fmt: skip
-    _write_files(out, report, md)
+    write_report_files(out, report, md)
 
 
 def write_audience_report(out: Path, report: dict[str, Any]) -> None:
@@ -361,10 +361,10 @@ def write_audience_report(out: Path, report: dict[str, Any]) -> None:
             )
         md.append("")
     md += [f"Run time: {report['seconds']} s.", ""]
-    _write_files(out, report, md)
+    write_report_files(out, report, md)
 
 
-def _write_files(out: Path, report: dict[str, Any], md: list[str]) -> None:
+def write_report_files(out: Path, report: dict[str, Any], md: list[str]) -> None:
     """report.json (finite floats only) and report.md (the lines ``md``) into ``out``."""
     from viewcomp.calib.eval.evaluate import dumps
 

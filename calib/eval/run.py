@@ -29,7 +29,7 @@ from viewcomp.calib.eval.report import (
     write_report,
 )
 
-PROTOCOLS = ("table2", "sweep", "all", "materials", "audience")
+PROTOCOLS = ("table2", "sweep", "all", "materials", "audience", "hardware")
 #: A tracked walk: times (n,) s, true eyes (n, 3) and tracked eyes (n, 3), metres.
 Walk = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -117,6 +117,34 @@ def _run_audience(
     return _finish(out_dir, report, t0, write_audience_report)
 
 
+def _run_hardware(
+    out_dir: str | Path,
+    folder: str | Path | None,
+    seed: int,
+    size: tuple[int, int] | None,
+    progress: Progress | None,
+) -> dict[str, Any]:
+    from viewcomp.calib.eval.hardware import HARDWARE_SIZE, PROFILES, hardware
+    from viewcomp.calib.eval.hwreport import write_hardware_report
+    from viewcomp.calib.eval.materials import material_files
+
+    t0 = time.perf_counter()
+    screens: list[str | Path] = ["magenta"]
+    if folder is not None:
+        screens += material_files(folder)
+    report: dict[str, Any] = {
+        "config": {
+            "protocol": "hardware",
+            "seed": seed,
+            "projector": list(size or HARDWARE_SIZE),
+            "profiles": list(PROFILES),
+            "screens": [str(s) for s in screens],
+        }
+    }
+    report |= hardware(screens, size=size or HARDWARE_SIZE, seed=seed, progress=progress)
+    return _finish(out_dir, report, t0, write_hardware_report)
+
+
 def run(
     out_dir: str | Path,
     protocol: str = "all",
@@ -135,6 +163,9 @@ def run(
     chessboard and Gray code) rectified by `calibrate`, as with real hardware.
     ``protocol = "materials"``: the sweep on the measured materials in the folder
     ``materials`` (:mod:`viewcomp.calib.eval.materials`), at ``size`` (default 320x160).
+    ``protocol = "hardware"``: the capture procedure on the hardware emulator's profiles
+    (:mod:`viewcomp.calib.eval.hardware`) on the glossy magenta screen and the materials of
+    ``materials`` (optional), beside ideal captures.
     ``protocol = "audience"``: the zone and walk of :mod:`viewcomp.calib.eval.audience` on
     ``screens``; ``walk``: the tracked walk (``viewcomp.rt.track.simtrack.tracked_walk``;
     None: the zone only).
@@ -145,6 +176,8 @@ def run(
         return _run_materials(out_dir, materials, seed, size, angles, progress)
     if protocol == "audience":
         return _run_audience(out_dir, seed, size, screens, walk, progress, space)
+    if protocol == "hardware":
+        return _run_hardware(out_dir, materials, seed, size, progress)
     t0 = time.perf_counter()
     world = World.make(seed=seed, size=size, space=space)
     report: dict[str, Any] = {

@@ -148,9 +148,12 @@ def judge(cal: Calibration) -> Verdict:
     ))  # fmt: skip
     geo = info.get("geometry") or {}
     gc = geo.get("graycode") or {}
-    if gc.get("decoded_fraction_of_lit") is not None:
+    ph = geo.get("phase") or {}
+    decoded = [v for v in (gc.get("decoded_fraction_of_lit"),
+                           ph.get("decoded_fraction_of_lit")) if v is not None]  # fmt: skip
+    if decoded:  # the phase maps the pixels a coarse camera's Gray code cannot
         found.append(_finding(
-            "coverage", gc["decoded_fraction_of_lit"], 0.9, 0.7, True,
+            "coverage", max(decoded), 0.9, 0.7, True,
             "fraction of the lit camera pixels whose projector position was decoded",
             "make the whole projected image visible and in focus, raise the exposure, and "
             "capture again",

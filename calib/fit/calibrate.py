@@ -31,6 +31,7 @@ from viewcomp.calib.fit.pixel import (
     calibrate_pixel,
 )
 from viewcomp.calib.fit.quality import capture_quality, ramp_residual
+from viewcomp.calib.hw.mono import MONO_REFUSAL, is_mono_set
 from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
@@ -267,6 +268,8 @@ def calibrate(
     """
     say = log or (lambda _msg: None)
     geometry_stats = None
+    if is_mono_set([cs.white[n] for n in ("red", "green", "blue") if n in cs.white]):
+        raise FitError("white/red", MONO_REFUSAL)
     if cs.rig.capture.space != "projector":
         say("rectifying the camera's captures onto the projector grid (chessboard, Gray code)")
         from viewcomp.calib.geo.rectify import (

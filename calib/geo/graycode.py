@@ -7,7 +7,7 @@ so a plane out of order or mislabelled is named.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +17,10 @@ from viewcomp.calib.geo.captures import Captures, channel_mean
 from viewcomp.calib.io.patterns import graycode_patterns
 
 BIT_CONTRAST = 0.08  # |pattern - inverse| / (white - black) below which a bit is unreliable
+# median |plane - inverse| / (white - black) over the lit pixels at or above which a plane
+# counts as resolved: a stripe the camera resolves reads ~0.8-1 away from its edges; one finer
+# than the camera's pixels (and optics) averages its light and inverse toward equal
+RESOLVED_CONTRAST = 0.35
 BIT_AGREEMENT = 0.8  # a Gray-code plane must agree with the chessboard on this share of pixels
 RESPONSE_SAMPLES = 60000  # stripe-edge pixels used to check the camera's response
 
@@ -39,6 +43,61 @@ class GrayCode:
     col_bits: np.ndarray  # (n_col_bits, W) bool: plane k's bit for each projector column
     row_bits: np.ndarray  # (n_row_bits, H) bool
     response_samples: np.ndarray  # (N, 4, 3) linear: plane, inverse, white, black at a pixel
+    contrast: np.ndarray  # (n_planes // 2,) median |plane - inverse| / (white - black), lit px
+    subpixel: np.ndarray | None = None  # (Hc, Wc, 2) float64 (u, v), NaN where not decoded
+
+    def positions(self) -> np.ndarray:
+        """(Hc, Wc, 2) float64 projector (u, v) per camera pixel, NaN where not decoded: the
+        sub-pixel positions when phase shifting gave them, else the whole pixels decoded."""
+        if self.subpixel is not None:
+            return self.subpixel
+        ok = self.column >= 0
+        uv = np.stack([self.column, self.row], -1).astype(np.float64)
+        uv[~ok] = np.nan
+        return uv
+
+    def stripe_widths(self) -> np.ndarray:
+        """(n_planes // 2,) int: each plane's narrowest stripe in projector pixels (columns
+        for the column planes, rows for the row planes)."""
+        tables = [*self.col_bits, *self.row_bits]
+        return np.array([_narrowest_run(t) for t in tables], np.int64)
+
+    def resolved(self) -> np.ndarray:
+        """(n_planes // 2,) bool: the planes the camera resolves (:func:`resolved_planes`)."""
+        return resolved_planes(self.contrast, self.stripe_widths(), self.n_col_bits)
+
+
+def _narrowest_run(bits: np.ndarray) -> int:
+    """Length of the shortest run of equal values inside a 1-D bool array (its length when
+    it is constant; the runs at both ends count only if they are the only ones)."""
+    edges = np.flatnonzero(np.diff(bits.astype(np.int8))) + 1
+    if len(edges) == 0:
+        return int(bits.size)
+    if len(edges) == 1:
+        return int(max(edges[0], bits.size - edges[0]))
+    return int(np.diff(edges).min())
+
+
+def resolved_planes(contrast: np.ndarray, widths: np.ndarray, n_col: int) -> np.ndarray:
+    """Which Gray-code planes the camera resolves: (n,) bool from each plane's measured
+    ``contrast`` (median |plane - inverse| / (white - black) over the lit pixels) and stripe
+    ``widths`` (projector px), the first ``n_col`` planes the columns' and the rest the rows'.
+
+    A plane is resolved when its contrast is at least :data:`RESOLVED_CONTRAST`; along each
+    axis, once a plane fails every plane with stripes as narrow or narrower is dropped too
+    (a finer stripe blurs at least as much), so the planes kept are the coarse ones.
+    """
+    c = np.asarray(contrast, np.float64)
+    w = np.asarray(widths, np.int64)
+    out = np.zeros(c.shape, bool)
+    for axis in (np.arange(n_col), np.arange(n_col, c.size)):
+        if axis.size == 0:
+            continue
+        ok = c[axis] >= RESOLVED_CONTRAST
+        failed = w[axis][~ok]
+        limit = failed.max() if failed.size else 0
+        out[axis] = ok & (w[axis] > limit)
+    return out
 
 
 def graycode_names(w: int, h: int) -> list[str]:
@@ -90,6 +149,7 @@ def decode_graycode(
     floor = np.maximum(rng, 0.05 * top)
     white3, black3 = caps.get("graycode_white"), caps.get("graycode_black")
     samples = []
+    contrast = np.zeros(n_pairs)
     per_pair = RESPONSE_SAMPLES // max(n_pairs, 1)
     for k in range(n_pairs):
         pos3, neg3 = caps.get(names[2 * k]), caps.get(names[2 * k + 1])
@@ -97,6 +157,7 @@ def decode_graycode(
         diff = pos - neg
         bits[k] = diff > 0
         reliable[k] = np.abs(diff) >= BIT_CONTRAST * floor
+        contrast[k] = float(np.median(np.abs(diff)[lit] / floor[lit]))
         # pixels the optics blur across a stripe edge see part of each: response samples
         t = (pos - black) / floor
         ys, xs = np.nonzero(lit & (t > 0.15) & (t < 0.85))
@@ -124,6 +185,7 @@ def decode_graycode(
         col_bits,
         row_bits,
         np.concatenate(samples) if samples else np.zeros((0, 4, 3), np.float32),
+        contrast,
     )
 
 
@@ -142,16 +204,19 @@ def check_planes(
     caps: Captures,
     predicted: np.ndarray,
     region: np.ndarray,
+    planes: Sequence[int] | None = None,
 ) -> dict[str, float]:
     """Each Gray-code plane against the chessboard's prediction of the projector coordinates.
 
-    ``predicted`` (Hc, Wc, 2) projector (u, v) from the chessboard, trusted in ``region``.
-    Returns the agreement per plane; raises FitError naming a plane that disagrees.
+    ``predicted`` (Hc, Wc, 2) projector (u, v) from the chessboard, trusted in ``region``;
+    ``planes`` the plane indices to check (None: all; the planes a decoder drops as
+    unresolved say nothing of the order). Returns the agreement per plane; raises FitError
+    naming a plane that disagrees.
     """
     w, h = gc.col_bits.shape[1], gc.row_bits.shape[1]
     margin = 0.75
     agreement: dict[str, float] = {}
-    for k in range(gc.bits.shape[0]):
+    for k in range(gc.bits.shape[0]) if planes is None else planes:
         is_col = k < gc.n_col_bits
         table = gc.col_bits[k] if is_col else gc.row_bits[k - gc.n_col_bits]
         coord = predicted[..., 0] if is_col else predicted[..., 1]

@@ -14,7 +14,13 @@ method and a chessboard:
 2. **Gray code** (``screen/graycode_white``, ``graycode_black``, ``graycode_00`` ...; OpenCV
    structured_light's patterns): decoded per camera pixel into the projector column and row
    that light it. Each bit plane is first checked against the chessboard's prediction, so a
-   plane out of order is named.
+   plane out of order is named. **Phase shifting** (``screen/phase_col_0`` ...
+   ``phase_row_7``, when captured; :mod:`~viewcomp.calib.geo.phaseshift`): when the camera
+   does not resolve the whole Gray code (a camera coarser than the projector's finest
+   stripes), the planes it does not resolve are dropped (and not checked), the rest pick the
+   sinusoid's period and its phase gives the sub-pixel position, which the map is fitted to
+   (on the pixels that see the frame whole). A camera that resolves every plane keeps the
+   Gray code's whole pixels (:func:`gray_code_suffices`, with the measurement behind it).
 3. **The map** projector pixel -> camera pixel, a smooth model fitted to the decoded pixels
    (robust least squares, started from Zhang's lens and the chessboard's homography):
    camera = K dist(H [s, t, 1]) + r(s, t), with (s, t) the projector pixel scaled to -1..1,
@@ -47,7 +53,7 @@ integers; image arrays are indexed ``[row, column]``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -63,6 +69,7 @@ from viewcomp.calib.geo.checks import (
 )
 from viewcomp.calib.geo.chessboard import Corners, find_corners, zhang
 from viewcomp.calib.geo.graycode import GrayCode, check_planes, decode_graycode
+from viewcomp.calib.geo.phaseshift import decode_phase, has_phase, with_phase
 from viewcomp.calib.geo.projmap import (
     ProjectorMap,
     fill_border,
@@ -74,6 +81,9 @@ from viewcomp.calib.io.captureset import OPTIONAL, REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import SATURATION_LIMIT
 
 MIN_DECODED = 0.5  # share of the lit projector frame that must decode
+# share of the lit camera pixels the Gray code alone must decode (every plane resolved, every
+# bit of the pixel reliable) for the map to be fitted on its whole pixels rather than the phase's
+GRAY_SUFFICES = 0.6
 MAX_DENSE_POINTS = 12000
 BORDER_PX = 1  # projector pixels at the frame's edge, seen half against the unlit surround
 
@@ -88,6 +98,20 @@ class Geometry:
     corners: Corners
     graycode: GrayCode
     stats: dict[str, Any]
+
+
+def gray_code_suffices(gc: GrayCode) -> bool:
+    """Whether the Gray code alone places enough pixels for the map: the camera resolves every
+    plane and at least :data:`GRAY_SUFFICES` of the lit pixels decode with every bit reliable.
+
+    Measured at 1.2 camera px per projector px (tests/test_geocal.py's world, seeds 1-3): the
+    map from the Gray code's whole pixels is 0.008-0.009 camera px RMS from the truth and its
+    lens k2 0.018-0.034 (truth 0.02); from the phase's sub-pixel positions 0.011-0.012 px and
+    k2 0.049-0.080. At 0.6 camera px per projector px the Gray code alone decodes 28% of the
+    pixels and the phase is needed (tests/test_phaseshift.py).
+    """
+    decoded = np.count_nonzero(gc.column >= 0) / max(int(np.count_nonzero(gc.lit)), 1)
+    return bool(gc.resolved().all()) and decoded >= GRAY_SUFFICES
 
 
 def calibrate_geometry(cs: CaptureSet) -> Geometry:
@@ -141,6 +165,18 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
     mover = MoveCheck(screen)
     gc = decode_graycode(screen, size, on_pair=lambda n, img: mover(screen, n, img))
     stats["response"] = check_response(gc, screen.response, "rig.toml")
+    # With the phase-shift captures, a camera that does not resolve the whole Gray code gets
+    # sub-pixel positions from the phase, unwrapped by the planes it resolves. One that
+    # resolves every plane keeps the Gray code's whole pixels: their rounding is unbiased and
+    # the fit averages it away, while the phase carries systematic errors of ~0.01 camera px
+    # that bias the lens (module doc, step 2). A set without them: the Gray code alone.
+    phase = None
+    if has_phase(screen):
+        phase = decode_phase(screen, gc, on_axis=lambda n, img: mover(screen, n, img))
+        use = not gray_code_suffices(gc)
+        if use:
+            gc = with_phase(gc, phase)
+        phase = replace(phase, stats={**phase.stats, "used_for_map": use})
     gc_rel = screen.rel(gc.names[0])
     mover.flush(lambda: check_coverage(gc, size, gc_rel))
     for caps in (white, screen):
@@ -149,7 +185,8 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
                 mover(caps, n, caps.get(n), lambda: check_coverage(gc, size, gc_rel))
     stats["max_frame_shift_px"] = round(mover.worst, 4)
     pred, region, h_cb = predict_from_chessboard(corners, k, dist, shape)
-    agreement = check_planes(gc, screen, pred, region)
+    sub = gc.subpixel is not None  # the phase's positions are the map's
+    agreement = check_planes(gc, screen, pred, region, phase.planes if sub else None)
     check_coverage(gc, size, screen.rel(gc.names[0]))
     ok = gc.column >= 0
     lit_frac = float(ok.sum()) / max(int(gc.lit.sum()), 1)
@@ -162,13 +199,12 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
         )
 
     # 3. the dense map
-    ys, xs = np.nonzero(ok)
+    # the fit takes the pixels that see the frame whole: at its edge blur biases the phase
+    ys, xs = np.nonzero(phase.whole if sub and phase is not None else ok)
     step = max(1, int(np.ceil(len(xs) / MAX_DENSE_POINTS)))
     sel = slice(None, None, step)
     cam_pts = np.stack([xs[sel], ys[sel]], 1).astype(np.float64)
-    proj_pts = np.stack([gc.column[ys[sel], xs[sel]], gc.row[ys[sel], xs[sel]]], 1).astype(
-        np.float64
-    )
+    proj_pts = gc.positions()[ys[sel], xs[sel]]  # sub-pixel with phase shifting
     cu, cv = (size[0] - 1) / 2.0, (size[1] - 1) / 2.0
     norm = np.array([[1 / cu, 0, -1], [0, 1 / cv, -1], [0, 0, 1]])
     h0 = h_cb @ np.linalg.inv(norm)
@@ -180,6 +216,8 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
         "plane_agreement_min": min(agreement.values()) if agreement else None,
         **fit,
     }
+    if phase is not None:
+        stats["phase"] = phase.stats
     stats["map"] = {
         "model": "camera = K dist(H [s, t, 1]) + cubic(s, t)",
         "distortion": [round(float(v), 5) for v in pmap.distortion],

@@ -1,8 +1,12 @@
 """The capture procedure of `viewcomp capture`: patterns in, a checked capture set out.
 
-For each pattern, in order: show it on the projector, wait ``settle`` seconds, grab and
-average ``frames`` camera frames, and check the capture at once, so that a problem is named
-while the user can still fix it:
+The devices are those of :mod:`viewcomp.calib.hw.interface`. Before the first capture the
+camera's automatic modes are locked (:mod:`~viewcomp.calib.hw.camlock`) and the projector ->
+camera latency is measured (:mod:`~viewcomp.calib.hw.latency`). Then for each pattern, in
+order: show it on the projector (its swap time t), average ``frames`` camera frames whose
+exposure started at or after t + latency + ``settle`` (:class:`~viewcomp.calib.hw.reader.
+FrameReader`: the driver's queue is drained by timestamps, failed reads retried), and check
+the capture at once, so that a problem is named while the user can still fix it:
 
 - saturated: more than 0.5% of the lit pixel-channels at the maximum code -> lower the
   exposure (or the projector's brightness);
@@ -23,7 +27,8 @@ a set that is written calibrates. A refused capture raises
 :class:`~viewcomp.calib.io.imageio.CaptureError` (or ``FitError``) and nothing is written.
 
 With an HDR bracket (``hdr_stops``, `capture --hdr`), each capture is the camera's frames at
-every relative exposure (:class:`Bracket`), merged into float32 linear light as it is taken;
+every relative exposure (:class:`~viewcomp.calib.hw.bracket.Bracket`, whole projector refresh
+periods), merged into float32 linear light as it is taken;
 "saturated" then means clipped even in the shortest exposure, and the set is written as
 ``.npy``.
 
@@ -33,17 +38,22 @@ and unattended runs (``--yes``) answer them.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.hw.bracket import Bracket
-from viewcomp.calib.hw.devices import Camera, Projector
+from viewcomp.calib.hw.camlock import lock_controls
+from viewcomp.calib.hw.clock import MonotonicClock
+from viewcomp.calib.hw.interface import Camera, Clock, Projector
 from viewcomp.calib.hw.livechecks import LiveChecks
+from viewcomp.calib.hw.mono import MONO_LIMITS
+from viewcomp.calib.hw.monochecks import MonoChecks
 from viewcomp.calib.hw.plan import Step, capture_plan
+from viewcomp.calib.hw.progress import Progress
+from viewcomp.calib.hw.reader import FrameReader
+from viewcomp.calib.hw.session import Session
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
 from viewcomp.calib.io.checks import check_captures
@@ -134,30 +144,42 @@ def run_capture(
     prompt: Prompt = console_prompt,
     log: Log = print,
     frames: int = 8,
-    settle: float = 0.5,
-    sleep: Callable[[float], None] = time.sleep,
+    settle: float = 0.0,
+    clock: Clock | None = None,
     response: str | float | None = None,
     hdr_stops: tuple[float, ...] | None = None,
+    exposure: float | str | None = None,
+    allow_auto: bool = False,
+    retries: int = 3,
 ) -> list[Path]:
     """Capture a camera-space set into ``out_dir`` (see the module doc); returns the files.
 
     Args:
         out_dir: a new or empty folder, or an old capture set (its files are replaced).
-        projector, camera: the devices (:mod:`viewcomp.calib.hw.devices`).
+        projector, camera: the devices (:mod:`viewcomp.calib.hw.interface`).
         rig_template: rig.toml geometry to keep (its resolutions are replaced by the
             devices'); None: the example rig, written with a "to complete" note.
         prompt: asks the user to swap screens; returning False stops (nothing written).
         log: progress and warnings.
         frames: camera frames averaged per capture (>= 1).
-        settle: seconds between showing a pattern and grabbing (projector and camera latency).
-        sleep: the waiting function (tests pass a no-op).
+        settle: seconds added to the measured latency before a frame counts as showing the
+            pattern (a projector whose light settles slowly: dynamic iris, lamp).
+        clock: the devices' clock (None: :class:`~viewcomp.calib.hw.clock.MonotonicClock`).
         response: the camera's response to write: None keeps the template's (sRGB without
             one), ``"estimate"`` estimates it from the Gray-code captures (light adds up:
             :func:`viewcomp.calib.geo.camresponse.estimate_response`), otherwise a rig.toml value.
         hdr_stops: None for one exposure per capture (encoded codes, written as PNG); or the
-            relative exposures of an HDR bracket (:class:`Bracket`): every capture is taken at
-            each and merged, written as float32 linear ``.npy``. Needs a known response (not
-            ``"estimate"``) and a camera whose exposure can be set.
+            relative exposures of an HDR bracket (:class:`~viewcomp.calib.hw.bracket.Bracket`,
+            whole projector refresh periods): every capture is taken at each and merged,
+            written as float32 linear ``.npy``. Needs a camera whose exposure can be set;
+            with ``response="estimate"`` the response is estimated from a bracket of the ramp
+            (OpenCV's Debevec) before the captures.
+        exposure: the camera's exposure in seconds; ``"auto"`` searches it
+            (:mod:`~viewcomp.calib.hw.autoexposure`) with the white screen up; None keeps
+            the camera's.
+        allow_auto: go on (with a warning) when the camera's automatic exposure or white
+            balance cannot be switched off; otherwise that is an error.
+        retries: failed reads retried in a row before the camera counts as gone.
 
     Raises:
         CaptureError: a capture is refused (the message names it and the fix), the user
@@ -165,60 +187,65 @@ def run_capture(
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
     from viewcomp.calib.geo.camresponse import estimate_set_response
-    from viewcomp.calib.geo.rectify import rectify_capture_set
+    from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
 
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
     if settle < 0:
         raise ValueError(f"settle must be >= 0 seconds, got {settle}")
-    if hdr_stops is not None and response == "estimate":
-        raise CaptureError(
-            "--hdr needs the camera's response to merge the bracket: give --response "
-            "(srgb, linear or a gamma) or a --rig with one; estimating it from the Gray code "
-            "needs 8-bit captures"
-        )
     out = Path(out_dir)
     _check_writable(out)
     rig, incomplete = capture_rig(rig_template, projector.resolution, camera.resolution)
     if response is not None and response != "estimate":
         rig = replace(rig, camera=replace(rig.camera, response=parse_response(response).spec))
     w, h = projector.resolution
-    problems = camera.lock()
-    for p in problems:
+    clock = clock if clock is not None else MonotonicClock()
+    reader = FrameReader(camera, clock, log, retries)
+    fixed = None if exposure is None or exposure == "auto" else float(exposure)
+    for p in lock_controls(camera, allow_auto, fixed):
         log(f"warning: {p}")
-    checks = LiveChecks(rig.camera.response_curve(), (w, h))
-    bracket = (
-        None if hdr_stops is None else Bracket(camera, hdr_stops, rig.camera.response_curve(), log)
-    )
-
-    def take() -> tuple[np.ndarray, np.ndarray | None]:
-        """One capture: (encoded codes, None), or with a bracket (merged float32 linear,
-        pixel-channels clipped in every frame)."""
-        if bracket is None:
-            return camera.grab(frames), None
-        return bracket.grab(frames)
-
+    if camera.channels == 1:
+        log(f"warning: {camera.name} is mono: {MONO_LIMITS}")
+    session = Session(projector, camera, clock, reader, log, frames, settle)
+    checks: LiveChecks | None = None
     captured: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     plan = capture_plan(w, h)
+    progress = Progress(len(plan), clock, log)
     stage = ""
-    for i, step in enumerate(plan):
+    for step in plan:
         if step.sub != stage:
-            if stage:
-                _end_of_stage(stage, projector, checks, take, settle, sleep, plan)
+            if stage and checks is not None:
+                _end_of_stage(stage, checks, session.take, plan)
             stage = step.sub
             if not prompt(stage, STAGE_MESSAGES[stage]):
                 raise CaptureError("capture stopped by the user; nothing was written")
-        projector.show(step.pattern)
-        sleep(settle)
-        image, clipped = take()
+            if checks is None:
+                found = session.prepare(
+                    exposure == "auto",
+                    hdr_stops,
+                    rig.camera.response_curve(),
+                    hdr_stops is not None and response == "estimate",
+                )
+                if found is not None:
+                    rig = replace(rig, camera=replace(rig.camera, response=found.spec))
+                checks = (MonoChecks if camera.channels == 1 else LiveChecks)(
+                    rig.camera.response_curve(), (w, h)
+                )
+                progress.start()
+        rel = f"{step.sub}/{step.name}"
+        image, clipped = session.take(step.pattern, rel)
         if clipped is None:
             checks.check(step.sub, step.name, image)
         else:
             checks.check_merged(step.sub, step.name, image, clipped)
-        captured[step.sub][step.name] = image
-        log(f"{step.sub}/{step.name} ({i + 1}/{len(plan)})")
-    _end_of_stage(stage, projector, checks, take, settle, sleep, plan)
+        if not getattr(step, "check_only", False):  # a step only checked is not written
+            captured[step.sub][step.name] = image
+        progress.step(rel)
+    if checks is not None:
+        _end_of_stage(stage, checks, session.take, plan)
     projector.show(np.zeros((h, w, 3), np.uint8))
+    if session.bracket is not None and response == "estimate":
+        response = None  # estimated from the brackets, not from the Gray code
 
     cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
     if response == "estimate":
@@ -226,9 +253,14 @@ def run_capture(
         log(f"camera response estimated from the Gray code: {found.spec!r} (misfit {misfit:.4f})")
         rig = replace(rig, camera=replace(rig.camera, response=found.spec))
         cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
-    log("checking the set as `viewcomp calibrate` will (geometry, saturation, order)")
-    rectified, stats = rectify_capture_set(cs)
-    check_captures(rectified)
+    if camera.channels == 1:
+        # colour order and mixing cannot be checked in a mono set (calibrate refuses it)
+        log("checking the set's geometry as `viewcomp calibrate` will")
+        stats = dict(calibrate_geometry(cs).stats)
+    else:
+        log("checking the set as `viewcomp calibrate` will (geometry, saturation, order)")
+        rectified, stats = rectify_capture_set(cs)
+        check_captures(rectified)
     log(
         f"geometry: Zhang reprojection {stats['chessboard']['zhang_rms_px']:.3f} px RMS, "
         f"Gray-code map {stats['graycode']['rms_px']:.3f} px RMS, chessboard vs map "
@@ -244,18 +276,14 @@ def run_capture(
 
 def _end_of_stage(
     stage: str,
-    projector: Projector,
     checks: LiveChecks,
-    take: Callable[[], tuple[np.ndarray, np.ndarray | None]],
-    settle: float,
-    sleep: Callable[[float], None],
+    take: Callable[[np.ndarray, str], tuple[np.ndarray, np.ndarray | None]],
     plan: list[Step],
 ) -> None:
     """Capture gray again (``take``: codes and None, or merged linear and its clipped mask)
     and compare it with the stage's first gray (not written)."""
     gray = next(s.pattern for s in plan if s.name == "gray")
-    projector.show(gray)
-    sleep(settle)
-    image, clipped = take()
+    what = f"{stage}/gray (again, at the end)"
+    image, clipped = take(gray, what)
     lin = checks.linear(image) if clipped is None else image
-    checks.moved(stage, f"{stage}/gray (again, at the end)", lin)
+    checks.moved(stage, what, lin)

@@ -1,4 +1,5 @@
-"""Calibration patterns to project: Table 1 of the paper, a chessboard and Gray code.
+"""Calibration patterns to project: Table 1 of the paper, a chessboard, Gray code and
+phase-shifted sinusoids.
 
 All patterns are 8-bit encoded RGB images (h, w, 3) uint8, 0..255, at the projector's
 resolution: exactly the values the projector is sent. Pixel (u, v) is array ``[v, u]``;
@@ -115,14 +116,64 @@ def graycode_patterns(w: int, h: int) -> tuple[list[np.ndarray], np.ndarray, np.
     return [rgb(p) for p in planes], rgb(white), rgb(black)
 
 
+# Phase shifting: sinusoids of PHASE_PERIOD projector pixels, each shown at PHASE_SHIFTS phases.
+# 32 px is about 19 camera px for a camera with 0.6 camera px per projector px (resolved even
+# after blur and pixel integration), and 4x the 8-px Gray-code stripes that such a camera still
+# resolves, which the unwrapping needs. 8 shifts cancel the projector response's harmonics 2-6
+# in the phase (only harmonics 7 and 9 alias onto the fundamental; see
+# :mod:`viewcomp.calib.geo.phaseshift`).
+PHASE_PERIOD = 32
+PHASE_SHIFTS = 8
+# The sinusoids' lowest level: the projector's frame stays brightly lit all round in every
+# shift. A sinusoid from 0 leaves the frame's left and right edges dark in some shifts, and the
+# live camera-moved check, which matches the frame's edges with the gray capture's, then reads
+# shifts near its 1-camera-px limit (0.85 px at 0.6 camera px per projector px with a floor of
+# 128, 0.41 px with 192). The cost: about half the modulation (the phase stays far more
+# precise than needed).
+PHASE_FLOOR = 192
+PHASE_AXES = ("col", "row")
+
+
+def phase_names(shifts: int = PHASE_SHIFTS) -> list[str]:
+    """Capture names of the phase-shift patterns: ``phase_col_0`` ... ``phase_col_{N-1}``
+    (varying along projector columns u), then ``phase_row_0`` ... (along rows v)."""
+    return [f"phase_{axis}_{n}" for axis in PHASE_AXES for n in range(shifts)]
+
+
+def phase_patterns(
+    w: int, h: int, period: int = PHASE_PERIOD, shifts: int = PHASE_SHIFTS
+) -> dict[str, np.ndarray]:
+    """Phase-shifted sinusoids, by capture name (:func:`phase_names`), each (h, w, 3) uint8.
+
+    ``phase_col_n`` at projector pixel (u, v) is round(F + (255 - F) (1 + cos(2 pi u / period -
+    2 pi n / shifts)) / 2) in every channel (halves rounded up; F = :data:`PHASE_FLOOR`),
+    constant along v; ``phase_row_n`` the same in v. So the phase 2 pi u / period is 0 at
+    u = 0 (pixel centres at integers), and shift n delays it by 2 pi n / shifts.
+    """
+    _check_size(w, h)
+    if not (isinstance(period, int) and period >= 4):
+        raise ValueError(f"phase period must be an integer of at least 4 pixels, got {period!r}")
+    if not (isinstance(shifts, int) and shifts >= 3):
+        raise ValueError(f"phase shifts must be an integer of at least 3, got {shifts!r}")
+    out: dict[str, np.ndarray] = {}
+    for axis, size in zip(PHASE_AXES, (w, h), strict=True):
+        x = np.arange(size, dtype=np.float64)
+        for n in range(shifts):
+            wave = 0.5 + 0.5 * np.cos(2.0 * np.pi * (x / period - n / shifts))
+            line = np.floor(PHASE_FLOOR + (255.0 - PHASE_FLOOR) * wave + 0.5).astype(np.uint8)
+            img = line[None, :] if axis == "col" else line[:, None]
+            out[f"phase_{axis}_{n}"] = np.broadcast_to(img[..., None], (h, w, 3)).copy()
+    return out
+
+
 def write_patterns(out_dir: str | Path, w: int, h: int) -> list[Path]:
     """Write every pattern to project as 8-bit RGB PNGs: the folder ``out_dir`` is written
     whole and replaces any old one (:func:`~viewcomp.calib.io.atomic.atomic_dir`).
 
     Files: red.png green.png blue.png gray.png ramp.png black.png (Table 1), chessboard.png
     (:func:`chessboard` with the default squares), graycode_00.png ... (:func:`graycode_patterns`,
-    two digits or more) and graycode_white.png graycode_black.png.
-    Returns the paths in that order.
+    two digits or more), graycode_white.png graycode_black.png and phase_col_0.png ...
+    phase_row_7.png (:func:`phase_patterns`). Returns the paths in that order.
     """
     out = Path(out_dir)
     images: dict[str, np.ndarray] = dict(table1_patterns(w, h))
@@ -133,6 +184,7 @@ def write_patterns(out_dir: str | Path, w: int, h: int) -> list[Path]:
         images[f"graycode_{k:0{digits}d}"] = p
     images["graycode_white"] = white
     images["graycode_black"] = black
+    images.update(phase_patterns(w, h))
     with atomic_dir(out) as staging:
         for name, img in images.items():
             write_png(staging / f"{name}.png", img)

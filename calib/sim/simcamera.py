@@ -17,6 +17,11 @@ for every camera pixel (u_c, v_c), row ``[v_c, u_c]`` of a (Hc, Wc) image:
    pixel's ray and the camera's optical axis, a Gaussian blur (optics, ``blur_px`` camera
    pixels), :meth:`Simulator.noise`, then :meth:`Simulator.quantise` (response, 8 bits).
 
+By default each camera pixel samples the screen at its centre (steps 1-3 at one point). With
+``SimCamera(..., supersample=k)`` steps 1-4's optics run on k x k sub-pixels that are then
+box-averaged: the pixel integrates over its area, as a real sensor does (what matters for a
+camera coarser than the projector's finest Gray-code stripes).
+
 Nothing of the physics is re-implemented here: albedo, lobe (R.V toward the camera), fall-off,
 projector response, primaries and ambient come from the Simulator on the projector grid.
 
@@ -36,7 +41,12 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.io.captureset import write_capture_set
-from viewcomp.calib.io.patterns import chessboard, graycode_patterns, table1_patterns
+from viewcomp.calib.io.patterns import (
+    chessboard,
+    graycode_patterns,
+    phase_patterns,
+    table1_patterns,
+)
 from viewcomp.calib.sim.simulator import (
     AnyScreen,
     CameraPhysics,
@@ -126,14 +136,20 @@ class CameraView:
     vignette: np.ndarray
 
 
-def camera_view(rig: Rig) -> CameraView:
+def camera_view(rig: Rig, supersample: int = 1) -> CameraView:
     """Cast every camera pixel's ray (with the camera's lens distortion) onto the screen.
+
+    ``supersample`` k >= 1 casts k x k rays per camera pixel instead, through the centres of
+    its k x k sub-cells: the view is then (k Hc, k Wc), sub-cell (i, j) of pixel (u, v) at
+    ``[k v + j, k u + i]`` (what :class:`SimCamera` box-averages to integrate over the pixel).
 
     Raises:
         GeometryError: a camera pixel's ray does not reach the screen plane in front of it.
     """
     cam = rig.camera
-    rays = cam.pixel_rays()  # (Hc, Wc, 3) unit, world
+    if not (isinstance(supersample, int) and supersample >= 1):
+        raise ValueError(f"supersample must be an integer >= 1, got {supersample!r}")
+    rays = cam.pixel_rays(cam.height * supersample, cam.width * supersample)  # unit, world
     origin = np.asarray(cam.position, np.float64)
     uv = rig.projector.project(meet_screen(origin, rays, "camera"))
     w, h = rig.projector.resolution
@@ -174,21 +190,39 @@ class SimCamera:
 
     ``blur_px`` is the optics' Gaussian sigma in camera pixels. The rig must already carry the
     lens the simulation should use (see :func:`camera_rig`).
+
+    ``supersample`` k: 1 (the default) samples the screen at each camera pixel's centre (a
+    point-sampling camera); k > 1 renders k x k sub-pixels per camera pixel (the blur scaled
+    alike) and box-averages them, so each pixel integrates the light over its area as a real
+    sensor does. The difference matters when the camera is coarser than the projector's
+    finest stripes (a camera pixel then sees several projector pixels and averages them).
     """
 
-    def __init__(self, sim: Simulator, blur_px: float = DEFAULT_BLUR_PX) -> None:
+    def __init__(
+        self, sim: Simulator, blur_px: float = DEFAULT_BLUR_PX, supersample: int = 1
+    ) -> None:
         if blur_px < 0:
             raise ValueError(f"blur_px must be >= 0 camera pixels, got {blur_px}")
+        if not (isinstance(supersample, int) and supersample >= 1):
+            raise ValueError(f"supersample must be an integer >= 1, got {supersample!r}")
         self.sim = sim
         self.blur_px = float(blur_px)
+        self.supersample = supersample
         # the same physics without the room light: radiance - lit = the ambient part
         self._lit_sim = replace(sim, ambient=(0.0, 0.0, 0.0))
         self._ambient: tuple[AnyScreen, np.ndarray] | None = None  # last screen's room light
 
     @cached_property
     def view(self) -> CameraView:
-        """The per-camera-pixel geometry, computed once."""
+        """The per-camera-pixel geometry (at the pixel centres), computed once."""
         return camera_view(self.sim.rig)
+
+    @cached_property
+    def fine_view(self) -> CameraView:
+        """The geometry of the sub-pixels rendered (:attr:`view` when ``supersample`` is 1)."""
+        if self.supersample == 1:
+            return self.view
+        return camera_view(self.sim.rig, self.supersample)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -197,24 +231,25 @@ class SimCamera:
         return (h, w)
 
     def _sample(self, grid: np.ndarray) -> np.ndarray:
-        """A projector-grid (H, W, 3) array sampled bilinearly at every camera pixel."""
+        """A projector-grid (H, W, 3) array sampled bilinearly at every rendered sub-pixel."""
         return cv2.remap(
             np.ascontiguousarray(grid, np.float32),
-            self.view.map_u,
-            self.view.map_v,
+            self.fine_view.map_u,
+            self.fine_view.map_v,
             cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
         )
 
     def radiance(self, screen: AnyScreen, image: np.ndarray) -> np.ndarray:
-        """What leaves the screen toward the camera, per camera pixel: (Hc, Wc, 3) float32
-        linear, before the camera (exposure, vignetting, blur, noise).
+        """What leaves the screen toward the camera, per rendered sub-pixel: (k Hc, k Wc, 3)
+        float32 linear (k = ``supersample``), before the camera (exposure, vignetting, blur,
+        noise).
 
         ``image`` is the (H, W, 3) uint8 pattern the projector shows.
         """
         eye = self.sim.geometry.camera
         lit = self._lit_sim.radiance(screen, image, eye)
-        out = self._sample(lit) * self.view.inside[..., None]
+        out = self._sample(lit) * self.fine_view.inside[..., None]
         return out + self._room_light(screen, image, lit)
 
     def _room_light(self, screen: AnyScreen, image: np.ndarray, lit: np.ndarray) -> np.ndarray:
@@ -227,12 +262,16 @@ class SimCamera:
 
     def linear(self, screen: AnyScreen, image: np.ndarray, vignetting: bool = True) -> np.ndarray:
         """The camera's linear signal before noise and clipping: (Hc, Wc, 3) float32."""
+        k = self.supersample
         lin = self.sim.expose(self.radiance(screen, image), vignetting=False)
         if vignetting and self.sim.camera.vignetting:
-            lin = lin * self.view.vignette[..., None]
+            lin = lin * self.fine_view.vignette[..., None]
         lin = np.asarray(lin, np.float32)
         if self.blur_px > 0:
-            lin = cv2.GaussianBlur(lin, (0, 0), self.blur_px, borderType=cv2.BORDER_REFLECT)
+            lin = cv2.GaussianBlur(lin, (0, 0), self.blur_px * k, borderType=cv2.BORDER_REFLECT)
+        if k > 1:  # each camera pixel: the mean of its k x k sub-pixels
+            hc, wc = self.shape
+            lin = lin.reshape(hc, k, wc, k, 3).mean(axis=(1, 3), dtype=np.float32)
         return lin
 
     def capture(self, screen: AnyScreen, image: np.ndarray, key: str) -> np.ndarray:
@@ -245,7 +284,9 @@ class SimCamera:
 def geometric_patterns(w: int, h: int) -> dict[str, np.ndarray]:
     """The geometric patterns of a camera-space set, by capture name: ``chessboard``,
     ``graycode_white``, ``graycode_black``, ``graycode_00`` ... (OpenCV's order, each bit plane
-    then its inverse, columns then rows). (h, w, 3) uint8 each."""
+    then its inverse, columns then rows), then the phase-shifted sinusoids ``phase_col_0`` ...
+    ``phase_row_7`` (:func:`~viewcomp.calib.io.patterns.phase_patterns`). (h, w, 3) uint8
+    each."""
     out = {"chessboard": chessboard(w, h)[0]}
     planes, white, black = graycode_patterns(w, h)
     out["graycode_white"] = white
@@ -253,6 +294,7 @@ def geometric_patterns(w: int, h: int) -> dict[str, np.ndarray]:
     digits = max(2, len(str(len(planes) - 1)))
     for k, p in enumerate(planes):
         out[f"graycode_{k:0{digits}d}"] = p
+    out.update(phase_patterns(w, h))
     return out
 
 
@@ -261,7 +303,7 @@ def capture_camera_patterns(
 ) -> dict[str, np.ndarray]:
     """Camera-space captures of one screen: Table 1 (and black) plus geometric patterns.
 
-    ``geometric``: ``"all"`` (chessboard and Gray code), ``"chessboard"`` or ``"none"``.
+    ``geometric``: ``"all"`` (chessboard, Gray code, phase shifts), ``"chessboard"`` or ``"none"``.
     Returns name -> (Hc, Wc, 3) uint8, in capture order.
     """
     todo = camera_patterns(cam.sim.rig.projector.resolution, black, geometric)
@@ -272,7 +314,7 @@ def camera_patterns(
     size: tuple[int, int], black: bool = True, geometric: str = "all"
 ) -> dict[str, np.ndarray]:
     """The patterns of one screen's camera-space captures, in capture order: Table 1 (and
-    black) plus ``geometric`` (``"all"``: chessboard and Gray code, ``"chessboard"``,
+    black) plus ``geometric`` (``"all"``: chessboard, Gray code, phase shifts, ``"chessboard"``,
     ``"none"``), for a projector of ``size`` (W, H). Name -> (H, W, 3) uint8."""
     if geometric not in ("all", "chessboard", "none"):
         raise ValueError(f'geometric must be "all", "chessboard" or "none", got {geometric!r}')

@@ -1,14 +1,16 @@
 """The projector of `viewcomp capture`: a fullscreen window showing each pattern pixel for pixel.
 
-It implements :class:`viewcomp.calib.hw.devices.Projector` with glfw and moderngl: no
-scaling, no filtering, vsync on.
+It implements :class:`viewcomp.calib.hw.interface.Projector` with glfw and moderngl: no
+scaling, no filtering, vsync on; :meth:`GlfwProjector.show` returns the clock time after the
+buffer swap (and a ``glFinish``, so that the swap was submitted, not only queued).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from viewcomp.calib.hw.devices import DeviceError
+from viewcomp.calib.hw.clock import MonotonicClock
+from viewcomp.calib.hw.interface import Clock, DeviceError
 from viewcomp.rt.gl.context import core_profile_hints
 from viewcomp.rt.play.glfw_session import GlfwSession, MonitorInfo
 from viewcomp.rt.play.glfw_session import list_monitors as glfw_monitors
@@ -26,10 +28,12 @@ def list_monitors() -> list[MonitorInfo]:
 
 class GlfwProjector:
     """A fullscreen window on monitor ``monitor`` (an index of :func:`list_monitors`) that
-    shows patterns pixel for pixel at the monitor's current mode. Use as a context manager
-    or call :meth:`close`."""
+    shows patterns pixel for pixel at the monitor's current mode. ``clock`` must be the
+    capture procedure's (None: :class:`~viewcomp.calib.hw.clock.MonotonicClock`). Use as a
+    context manager or call :meth:`close`."""
 
-    def __init__(self, monitor: int, vsync: bool = True) -> None:
+    def __init__(self, monitor: int, vsync: bool = True, clock: Clock | None = None) -> None:
+        self._clock = clock if clock is not None else MonotonicClock()
         self._session = GlfwSession(DeviceError)
         try:
             self._open(monitor, vsync)
@@ -49,6 +53,7 @@ class GlfwProjector:
             )
         mon = monitors[monitor]
         mode = glfw.get_video_mode(mon)
+        self._refresh = float(mode.refresh_rate) if mode.refresh_rate > 0 else 60.0
         core_profile_hints(glfw)
         glfw.window_hint(glfw.AUTO_ICONIFY, False)
         glfw.window_hint(glfw.REFRESH_RATE, mode.refresh_rate)
@@ -88,8 +93,14 @@ class GlfwProjector:
         """(width, height) of the window's framebuffer in pixels."""
         return self._size
 
-    def show(self, image: np.ndarray) -> None:
-        """Upload and show one (H, W, 3) uint8 pattern; returns after the buffer swap."""
+    @property
+    def refresh_hz(self) -> float:
+        """The monitor mode's refresh rate (60 when GLFW does not say)."""
+        return self._refresh
+
+    def show(self, image: np.ndarray) -> float:
+        """Upload and show one (H, W, 3) uint8 pattern; returns the clock time after the
+        buffer swap."""
         w, h = self._size
         img = np.asarray(image)
         if img.shape != (h, w, 3) or img.dtype != np.uint8:
@@ -105,7 +116,10 @@ class GlfwProjector:
         self._tex.use(0)
         self._vao.render(mode=self._ctx.TRIANGLES, vertices=3)
         self._glfw.swap_buffers(self._window)
+        self._ctx.finish()
+        swapped = self._clock.now()
         self._glfw.poll_events()
+        return swapped
 
     def read_back(self) -> np.ndarray:
         """The window's front content as (H, W, 3) uint8 RGB, row 0 at the top (for tests)."""

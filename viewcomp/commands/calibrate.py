@@ -109,6 +109,19 @@ def run(args: argparse.Namespace) -> int:
             f"{m.get('chessboard_rms_px')} px RMS; lens {m.get('distortion')}; largest frame "
             f"shift {geo.get('max_frame_shift_px')} px"
         )
+        ph = geo.get("phase")
+        if ph:
+            print(
+                f"  phase shifting ({ph['period_px']}-px period, {ph['shifts']} shifts): "
+                f"{ph['decoded_fraction_of_lit']:.1%} of the lit camera pixels at sub-pixel "
+                f"positions, unwrapped by {ph['graycode_planes_used']} Gray-code planes "
+                f"({ph['graycode_planes_dropped']} too fine for the camera, dropped); "
+                + (
+                    "the map is fitted to them"
+                    if ph.get("used_for_map")
+                    else "the camera resolves the whole Gray code, whose pixels the map keeps"
+                )
+            )
     _verdict(cal, maps, args.report, log)
     return 0
 

@@ -11,7 +11,11 @@ from typing import TYPE_CHECKING
 from viewcomp.cli import UsageError
 
 if TYPE_CHECKING:
-    from viewcomp.calib.hw.devices import Camera, Projector, SimulatedRig
+    from viewcomp.calib.emu.emulator import Emulator
+    from viewcomp.calib.emu.faults import Faults
+    from viewcomp.calib.hw.clock import MonotonicClock
+    from viewcomp.calib.hw.interface import Camera, Projector
+    from viewcomp.calib.hw.simrig import SimulatedRig
     from viewcomp.calib.world.rig import Rig
 
 
@@ -30,21 +34,47 @@ def register(sub: argparse._SubParsersAction) -> None:
         "capture is refused.",
     )
     p.add_argument("out_dir", nargs="?", help="capture-set folder to write (new or empty)")
-    p.add_argument("--camera", type=int, help="OpenCV camera index (0 is the first)")
+    p.add_argument(
+        "--camera",
+        default=None,
+        help="the camera, as the backend names it: an OpenCV index (0 is the first), a gphoto2 "
+        "model or port, PRODUCER.cti[#SERIAL] for genicam, anything for a plug-in",
+    )
+    p.add_argument(
+        "--camera-backend",
+        default="opencv",
+        help="opencv (default), gphoto2 (DSLRs; pip install gphoto2), genicam (machine vision "
+        "through a GenTL producer; pip install harvesters), or module:factory, a plug-in: "
+        "factory(spec) -> Camera in an importable module, called with --camera",
+    )
     p.add_argument("--monitor", type=int, help="the projector's monitor (see --list-monitors)")
     p.add_argument("--frames", type=int, default=8, help="frames averaged per capture (default 8)")
     p.add_argument(
         "--settle",
         type=float,
         default=None,
-        help="seconds between showing a pattern and grabbing (default 0.5; 0 with --simulate)",
+        help="seconds added to the measured projector->camera latency before a frame counts "
+        "as showing its pattern (default 0.1; 0 with --simulate)",
     )
     p.add_argument(
         "--exposure",
         type=float,
         default=None,
-        help="camera exposure, in the driver's units (with --simulate: the simulated camera's "
-        "linear gain, default 0.8); with --hdr the bracket's longest exposure",
+        help="camera exposure in seconds (with --simulate: 1 s is the simulator's unit "
+        "exposure); with --hdr the bracket's longest exposure. Default: searched with the "
+        "white screen up, so that the brightest pattern's lit region reaches 80%% of full scale",
+    )
+    p.add_argument(
+        "--retries",
+        type=int,
+        default=3,
+        help="failed camera reads retried in a row before the camera counts as gone (default 3)",
+    )
+    p.add_argument(
+        "--allow-auto",
+        action="store_true",
+        help="go on (with a warning) when the camera's automatic exposure or white balance "
+        "cannot be switched off; without it that is an error",
     )
     p.add_argument(
         "--hdr",
@@ -80,6 +110,32 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
     add_simulator_arguments(sim, size="--sim-size", material=True)
+    emu = p.add_argument_group("hardware emulation (no hardware, harsher than --simulate)")
+    emu.add_argument(
+        "--emulate",
+        choices=("webcam", "dslr", "mono12"),
+        default=None,
+        help="run the real procedure on emulated devices: a DLP projector (latency 2-4 "
+        "refreshes, colour sub-frames) and a camera profile (webcam: 1280x720-like UVC with "
+        "MJPEG, driver queue, auto exposure, rolling shutter; dslr: slow raw 14-bit; mono12: "
+        "machine vision); the screen from --screen/--gloss or --material, the projector's "
+        "size from --sim-size, the randomness from --seed",
+    )
+    emu.add_argument(
+        "--bump-at",
+        metavar="K:PX",
+        default=None,
+        help="with --emulate: bump the camera at the K-th pattern shown (counted from 0, the "
+        "latency sentinel included) so the image moves about PX camera pixels",
+    )
+    emu.add_argument(
+        "--faults",
+        metavar="SPEC",
+        default=None,
+        help="with --emulate: more faults, comma-separated: drop=G+G (lost frames at grabs G, "
+        "counted from 0), fail=G+G (failed reads), late=K+K (patterns lit one refresh late), "
+        "drop_p=P, fail_p=P, late_p=P (probabilities)",
+    )
     add_force_argument(p, "capture set")
     p.set_defaults(run=run)
 
@@ -92,25 +148,27 @@ def run(args: argparse.Namespace) -> int:
     if args.out_dir is None:
         raise UsageError("give the capture-set folder OUT_DIR")
     _check_out_dir(args)
+    if args.retries < 0:
+        raise UsageError(f"--retries must be >= 0, got {args.retries}")
     if args.frames < 1:
         raise UsageError(f"--frames must be at least 1, got {args.frames}")
     if args.settle is not None and args.settle < 0:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
-    if not args.simulate and (args.camera is None or args.monitor is None):
-        raise UsageError("give --camera N and --monitor M (or --simulate for no hardware)")
+    faults = _emulator_faults(args)
+    if not (args.simulate or args.emulate) and (
+        (args.camera is None and args.camera_backend == "opencv") or args.monitor is None
+    ):
+        raise UsageError(
+            "give --camera N and --monitor M (or --simulate or --emulate for no hardware)"
+        )
     from viewcomp.calib.hw.procedure import NO_TERMINAL, console_prompt, run_capture
     from viewcomp.calib.io.hdr import DEFAULT_STOPS
     from viewcomp.calib.world.rig import load_rig
 
     template = load_rig(args.rig) if args.rig else None
     response = args.response
-    if response is None and template is None and not args.simulate:
-        if args.hdr:
-            raise UsageError(
-                "--hdr needs the camera's response to merge the bracket: give --response "
-                "srgb|linear|GAMMA or a --rig with one (estimating it needs 8-bit captures)"
-            )
-        response = "estimate"
+    if response is None and template is None and not (args.simulate or args.emulate):
+        response = "estimate"  # with --hdr: from a bracket (Debevec), else from the Gray code
     if response is not None and response != "estimate":
         from viewcomp.calib.world.response import parse_response
 
@@ -133,10 +191,26 @@ def run(args: argparse.Namespace) -> int:
             return ok
 
         settle = 0.0 if args.settle is None else args.settle
+        clock = rig_dev.clock
+    elif args.emulate:
+        size = parse_size(args.sim_size) if args.sim_size else None
+        emulator, template = _emulated(args, size, template, faults)
+        projector, camera, clock = emulator.projector, emulator.camera, emulator.clock
+
+        def prompt(stage: str, message: str) -> bool:
+            ok = (base_prompt or console_prompt)(stage, message)
+            if ok:
+                emulator.swap_screen(stage)  # the emulated hands swap the screen
+            return ok
+
+        settle = 0.1 if args.settle is None else args.settle
     else:
-        projector, camera = _hardware(args, parse_size)
+        from viewcomp.calib.hw.clock import MonotonicClock
+
+        clock = MonotonicClock()
+        projector, camera = _hardware(args, parse_size, clock)
         prompt = base_prompt or console_prompt
-        settle = 0.5 if args.settle is None else args.settle
+        settle = 0.1 if args.settle is None else args.settle
     try:
         paths = run_capture(
             args.out_dir,
@@ -147,14 +221,28 @@ def run(args: argparse.Namespace) -> int:
             log=log,
             frames=args.frames,
             settle=settle,
+            clock=clock,
             response=response,
             hdr_stops=DEFAULT_STOPS if args.hdr else None,
+            exposure=_exposure(args),
+            allow_auto=args.allow_auto,
+            retries=args.retries,
         )
     finally:
         projector.close()
         camera.close()
+        if args.emulate:
+            print(f"emulated devices' clock: {clock.now():.1f} s", file=sys.stderr)
     print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
     return 0
+
+
+def _exposure(args: argparse.Namespace) -> float | str | None:
+    """What run_capture is told: "auto" (search) without --exposure; the seconds given on
+    hardware; None with --simulate (the simulated camera starts at --exposure)."""
+    if args.exposure is None:
+        return "auto"
+    return None if args.simulate else float(args.exposure)
 
 
 def _interactive() -> bool:
@@ -177,7 +265,7 @@ def _simulated(
     write (the simulation's geometry, without the lens)."""
     from dataclasses import replace
 
-    from viewcomp.calib.hw.devices import SimulatedRig as _SimulatedRig
+    from viewcomp.calib.hw.simrig import SimulatedRig as _SimulatedRig
     from viewcomp.calib.sim.simcamera import camera_simulator, scaled_camera_rig, written_rig
     from viewcomp.calib.sim.simulator import (
         PROJECTOR_PRESETS,
@@ -195,7 +283,7 @@ def _simulated(
         rig = replace(rig, projector=replace(rig.projector, resolution=size, principal_point=None))
     true_rig = scaled_camera_rig(rig, size)
     if args.exposure is not None and not args.exposure > 0:
-        raise UsageError(f"--exposure of the simulated camera is a gain > 0, got {args.exposure}")
+        raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     sim = camera_simulator(true_rig, args.seed, PROJECTOR_PRESETS[projector], args.exposure)
     screen: AnyScreen
     if material is not None:
@@ -207,17 +295,80 @@ def _simulated(
     return dev, dev.projector, dev.camera, written_rig(true_rig)
 
 
+def _emulator_faults(args: argparse.Namespace) -> Faults | None:
+    """The faults of --bump-at and --faults (None without --emulate, where they are refused)."""
+    if not args.emulate:
+        for flag, value in (("--bump-at", args.bump_at), ("--faults", args.faults)):
+            if value is not None:
+                raise UsageError(f"{flag} injects a fault into emulated devices: add --emulate")
+        return None
+    if args.simulate:
+        raise UsageError("--simulate and --emulate are two different rigs: give one")
+    from dataclasses import replace
+
+    from viewcomp.calib.emu.faults import Faults, FaultSpecError, parse_bump, parse_faults
+
+    try:
+        faults = parse_faults(args.faults) if args.faults else Faults()
+        if args.bump_at is not None:
+            faults = replace(faults, bump_at=parse_bump(args.bump_at))
+    except FaultSpecError as e:
+        flag = "--faults" if args.bump_at is None or "bump" not in str(e) else "--bump-at"
+        raise UsageError(f"{flag}: {e}") from None
+    return faults
+
+
+def _emulated(
+    args: argparse.Namespace,
+    size: tuple[int, int] | None,
+    template: Rig | None,
+    faults: Faults | None,
+) -> tuple[Emulator, Rig]:
+    """The emulated rig (:func:`viewcomp.calib.emu.emulator.open_emulator`) and the rig.toml
+    to write: the true geometry without the lens, with the response the camera's spec sheet
+    would give (linear raw, or sRGB for a webcam: not its true tone curve)."""
+    from dataclasses import replace
+
+    from viewcomp.calib.emu.emulator import open_emulator
+    from viewcomp.calib.sim.simcamera import written_rig
+    from viewcomp.calib.sim.simulator import simulation_rig
+    from viewcomp.commands._common import simulated_screen
+
+    colour, gloss, material, _ = simulated_screen(args)
+    rig = template or simulation_rig()
+    emu = open_emulator(
+        args.emulate,
+        material if material is not None else colour,
+        seed=args.seed,
+        projector_size=size or rig.projector.resolution,
+        gloss=gloss,
+        faults=faults,
+        rig=rig,
+    )
+    written = written_rig(emu.truth.rig)
+    response = "linear" if emu.profile.linear else "srgb"
+    return emu, replace(written, camera=replace(written.camera, response=response))
+
+
 def _hardware(
-    args: argparse.Namespace, parse_size: Callable[[str], tuple[int, int]]
+    args: argparse.Namespace,
+    parse_size: Callable[[str], tuple[int, int]],
+    clock: MonotonicClock,
 ) -> tuple[Projector, Camera]:
-    """The glfw projector on --monitor and the OpenCV camera --camera."""
-    from viewcomp.calib.hw.devices import OpenCVCamera
+    """The glfw projector on --monitor and the camera --camera of --camera-backend, on
+    ``clock``."""
+    from viewcomp.calib.hw.backends import open_camera
     from viewcomp.rt.play.projector import GlfwProjector
 
+    if args.exposure is not None and not args.exposure > 0:
+        raise UsageError(f"--exposure is seconds > 0, got {args.exposure}")
     cam_size = parse_size(args.camera_size) if args.camera_size else None
-    camera = OpenCVCamera(args.camera, size=cam_size, exposure=args.exposure)
+    camera = open_camera(args.camera_backend, args.camera or "", clock, cam_size)
+    units = getattr(camera, "units", None)
+    if units:
+        print(f"{camera.name}: exposure {units}", file=sys.stderr)
     try:
-        projector = GlfwProjector(args.monitor)
+        projector = GlfwProjector(args.monitor, clock=clock)
     except BaseException:
         camera.close()
         raise

@@ -22,12 +22,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, help="report folder (created if needed)")
     p.add_argument(
         "--protocol",
-        choices=["table2", "sweep", "all", "materials", "audience"],
+        choices=["table2", "sweep", "all", "materials", "audience", "hardware"],
         default="all",
         help="table2, sweep, all (both), materials: the sweep on measured materials "
         "(needs --materials), or audience: viewers spread over a zone (compensated for 90 "
         "degrees, the zone's centre, the whole audience, and each viewer alone) and a viewer "
-        "walking across, followed by the face tracker",
+        "walking across, followed by the face tracker; or hardware: `viewcomp capture`'s "
+        "procedure on the hardware emulator (webcam, DSLR, mono12 camera; a DLP projector) "
+        "on the glossy magenta screen and the materials of --materials (if given), 8-bit and "
+        "HDR, calibrated and compensated, beside ideal captures, with the capture time the "
+        "real devices would take",
     )
     p.add_argument("--no-walk", action="store_true",
                    help="--protocol audience: the zone only, no tracked walk")  # fmt: skip
@@ -44,14 +48,21 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 # Seconds per protocol at 640x320, projector space, measured on this project's 2-core
 # machine when otherwise idle (2026-11-24: table2 32 s, sweep 100 s, plus the report's plots).
-MEASURED_S = {"table2": 35.0, "sweep": 115.0, "materials": 480.0, "audience": 300.0}
+MEASURED_S = {
+    "table2": 35.0,
+    "sweep": 115.0,
+    "materials": 480.0,
+    "audience": 300.0,
+    "hardware": 240.0,
+}
 
 
 def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
     """How long the run will take, honestly: measured times scaled by the grid's pixels."""
     parts = ["table2", "sweep"] if args.protocol == "all" else [args.protocol]
-    w, h = size or ((320, 160) if args.protocol == "materials" else (640, 320))
-    base = 320 * 160 if args.protocol == "materials" else 640 * 320
+    small = args.protocol in ("materials", "hardware")  # measured at 320x160
+    w, h = size or ((320, 160) if small else (640, 320))
+    base = 320 * 160 if small else 640 * 320
     seconds = sum(MEASURED_S[p] for p in parts) * (w * h) / base
     span = (f"about {seconds / 60:.1f} minutes" if seconds >= 90 else
             f"about {seconds:.0f} s")  # fmt: skip
@@ -93,6 +104,8 @@ def run(args: argparse.Namespace) -> int:
         materials=args.materials,
         walk=walk,
     )
+    if "hardware_checks" in rep:
+        print("hardware:", rep["hardware_checks"])
     if "materials_checks" in rep:
         print("materials:", rep["materials_checks"])
     if "table2_checks" in rep:

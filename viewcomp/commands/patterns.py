@@ -13,7 +13,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="write the calibration patterns to project",
         description="Write the patterns to project at the projector's resolution: Table 1's "
         "red (130,110,110), green, blue, gray (110,110,110), the ramp round(255 u/(w-1)), "
-        "black, and the geometric patterns (chessboard, Gray code).",
+        "black, and the geometric patterns (chessboard, Gray code, phase-shifted sinusoids).",
     )
     p.add_argument("out_dir", help="folder to write (new or empty; created if needed)")
     p.add_argument("--size", required=True, help="projector resolution WIDTHxHEIGHT, e.g. 1280x720")

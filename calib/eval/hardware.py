@@ -1,0 +1,227 @@
+"""`viewcomp evaluate --protocol hardware`: the capture procedure on emulated devices, end to end.
+
+For each camera profile of the hardware emulator (:mod:`viewcomp.calib.emu`: a UVC webcam, a
+DSLR, a mono machine-vision camera, all with a DLP projector) and each screen (the built-in
+glossy magenta, and every measured material of a folder), 8-bit and HDR:
+
+1. **capture**: :func:`~viewcomp.calib.hw.procedure.run_capture` on the emulated devices - the
+   code `viewcomp capture` runs on real hardware - into a capture set on disk; the emulator's
+   clock says how long the capture would take on the real devices;
+2. **calibrate** the set as `viewcomp calibrate` does (read back from disk);
+3. **render**: natural images compensated (per-pixel method) for viewers at 60, 90 and 125
+   degrees;
+4. **what the viewer sees**: the emulator's own physics (its DLP projector averaged over whole
+   refresh periods, the true screen, an ideal eye) of the projected images, against what the
+   white screen shows of the image: mean CIEDE2000.
+
+Beside it, ``ideal``: the same calibration and rendering on ideal projector-space captures of
+the same screen and projector - the emulator's truth seen from the camera's position on the
+projector grid, in float linear light (no lens, no noise, no clipping, no device at all) - so
+the difference is what the devices cost. ``original`` is the image projected as it is. A
+capture or a calibration that is refused is a result: the row says why.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from viewcomp.calib.comp.compensation import Compensation
+from viewcomp.calib.emu.emulator import Emulator, open_emulator
+from viewcomp.calib.errors import FitError
+from viewcomp.calib.eval.metrics import delta_e2000
+from viewcomp.calib.eval.testimages import natural_images
+from viewcomp.calib.fit.calibrate import Calibration, calibrate
+from viewcomp.calib.io.captureset import capture_set_from_raw, read_capture_set
+from viewcomp.calib.io.hdr import DEFAULT_STOPS
+from viewcomp.calib.io.imageio import CaptureError
+from viewcomp.calib.sim.simcamera import written_rig
+from viewcomp.calib.sim.simulate import projector_patterns
+from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.calib.world.response import parse_response
+from viewcomp.calib.world.rig import CaptureSpec
+
+PROFILES = ("webcam", "dslr", "mono12")
+HARDWARE_ANGLES = (60.0, 90.0, 125.0)
+HARDWARE_SIZE = (320, 160)
+CAPTURES = ("8bit", "hdr")
+#: Mean dE of the emulated pipeline at most this many times the ideal one's (60 and 125 deg).
+WITHIN = 1.15
+IMAGES = ("astronaut", "coffee", "chelsea")
+
+Progress = Callable[[str], None]
+_SRGB = parse_response("srgb")
+
+
+def _encode(linear: np.ndarray) -> np.ndarray:
+    """Linear light (H, W, 3) -> sRGB codes (the metric's encoding), clipped."""
+    enc = _SRGB.encode(np.clip(linear, 0.0, 1.0).astype(np.float32))
+    return np.rint(np.asarray(enc) * 255.0).astype(np.uint8)
+
+
+def emulated_capture(
+    emu: Emulator, out: Path, hdr: bool, frames: int = 4, log: Progress | None = None
+) -> tuple[list[Path], float]:
+    """Run the real capture procedure on ``emu`` into ``out``; returns the files and the
+    seconds it took on the emulated devices' clock."""
+    from viewcomp.calib.hw.procedure import run_capture
+
+    written = written_rig(emu.truth.rig)
+    response = "linear" if emu.profile.linear else "srgb"
+    template = replace(written, camera=replace(written.camera, response=response))
+
+    def prompt(stage: str, _message: str) -> bool:
+        emu.swap_screen(stage)
+        return True
+
+    start = emu.clock.now()
+    paths = run_capture(
+        out,
+        emu.projector,
+        emu.camera,
+        rig_template=template,
+        prompt=prompt,
+        log=log or (lambda _m: None),
+        frames=frames,
+        clock=emu.clock,
+        hdr_stops=DEFAULT_STOPS if hdr else None,
+        exposure="auto",
+    )
+    return paths, emu.clock.now() - start
+
+
+def ideal_calibration(emu: Emulator) -> Calibration:
+    """The calibration from ideal projector-space captures of the emulator's own world: what
+    an ideal camera at the calibration camera's position sees on the projector grid (float
+    linear, whole refresh periods)."""
+    truth = emu.truth
+    rig = replace(truth.rig, capture=CaptureSpec(space="projector"))
+    cam = np.asarray(rig.camera.position, np.float64)
+    pats = projector_patterns(rig.projector.resolution, True)
+    sets = {
+        name: {
+            k: truth.observe_linear(name, img, cam).astype(np.float32) for k, img in pats.items()
+        }
+        for name in ("white", "screen")
+    }
+    return calibrate(capture_set_from_raw(rig, sets["white"], sets["screen"]))
+
+
+def seen_errors(
+    emu: Emulator, cal: Calibration, images: dict[str, np.ndarray], angles: Sequence[float]
+) -> dict[str, dict[str, float]]:
+    """Per angle (key ``f"{angle:g}"``) the mean over ``images`` of the dE of ``compensated``
+    (the per-pixel method of ``cal`` for that viewer) and ``original``, both against the
+    white screen, seen through the emulator's physics."""
+    truth = emu.truth
+    v = truth.rig.viewer
+    comp = Compensation(cal, "pixel")
+    out: dict[str, dict[str, float]] = {}
+    for a in angles:
+        eye = eye_from_angle(float(a), v.distance, v.height)
+        de: dict[str, list[float]] = {"compensated": [], "original": []}
+        for image in images.values():
+            ideal = _encode(truth.observe_linear("white", image, eye))
+            shown, _ = comp.compensate_image(image, eye)
+            de["compensated"].append(
+                delta_e2000(_encode(truth.observe_linear("screen", shown, eye)), ideal)
+            )
+            de["original"].append(
+                delta_e2000(_encode(truth.observe_linear("screen", image, eye)), ideal)
+            )
+        out[f"{a:g}"] = {k: float(np.mean(v_)) for k, v_ in de.items()}
+    return out
+
+
+def hardware_case(
+    profile: str,
+    screen: str | Path,
+    capture: str,
+    size: tuple[int, int] = HARDWARE_SIZE,
+    seed: int = 0,
+    angles: Sequence[float] = HARDWARE_ANGLES,
+    image_names: Sequence[str] = IMAGES,
+    ideal: dict[str, Any] | None = None,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """One row: ``profile`` x ``screen`` (a colour name, glossy, or a material ``.npz``) x
+    ``capture`` ("8bit" or "hdr"). ``ideal`` caches the ideal pipeline's errors per screen
+    (it depends on neither the profile nor the capture)."""
+    if capture not in CAPTURES:
+        raise ValueError(f"capture must be one of {CAPTURES}, got {capture!r}")
+    emu = open_emulator(profile, screen, seed=seed, projector_size=size)
+    w, h = size
+    imgs = {k: v for k, v in natural_images(w, h).items() if k in image_names}
+    row: dict[str, Any] = {
+        "profile": profile,
+        "screen": emu.truth.screens["screen"].name,
+        "capture": capture,
+        "refused": None,
+    }
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="viewcomp-hw-") as tmp:
+        try:
+            _, seconds = emulated_capture(emu, Path(tmp) / "caps", capture == "hdr")
+            row["capture_seconds"] = round(seconds, 1)
+            cal = calibrate(read_capture_set(Path(tmp) / "caps"))
+        except (CaptureError, FitError) as exc:
+            row["refused"] = str(exc)
+    if row["refused"] is None:
+        row["emulated"] = seen_errors(emu, cal, imgs, angles)
+    key = row["screen"]
+    if ideal is not None and key in ideal:
+        row["ideal"] = ideal[key]
+    else:
+        row["ideal"] = seen_errors(emu, ideal_calibration(emu), imgs, angles)
+        if ideal is not None:
+            ideal[key] = row["ideal"]
+    row["run_seconds"] = round(time.perf_counter() - t0, 1)
+    emu.close()
+    if progress:
+        what = "refused: " + str(row["refused"])[:120] if row["refused"] else "done"
+        progress(f"hardware: {profile} {row['screen']} ({capture}) {what}")
+    return row
+
+
+def check_hardware(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The criteria: no capture refused; the emulated pipeline's mean dE within
+    :data:`WITHIN` times the ideal one's at 60 and 125 degrees, per row."""
+    refused = [f"{r['profile']}/{r['screen']}/{r['capture']}" for r in rows if r["refused"]]
+    ratios = {}
+    for r in rows:
+        if r["refused"]:
+            continue
+        for a in ("60", "125"):
+            e, i = r["emulated"][a]["compensated"], r["ideal"][a]["compensated"]
+            ratios[f"{r['profile']}/{r['screen']}/{r['capture']}@{a}"] = round(e / i, 4)
+    return {
+        "refused": refused,
+        "ratios": ratios,
+        "within": all(v <= WITHIN for v in ratios.values()) and not refused,
+    }
+
+
+def hardware(
+    screens: Sequence[str | Path],
+    profiles: Sequence[str] = PROFILES,
+    captures: Sequence[str] = CAPTURES,
+    size: tuple[int, int] = HARDWARE_SIZE,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """The hardware protocol over ``screens`` (colour names and material paths) x
+    ``profiles`` x ``captures``; returns ``{"hardware": rows, "hardware_checks": ...}``."""
+    ideal: dict[str, Any] = {}
+    rows = [
+        hardware_case(p, s, c, size, seed, ideal=ideal, progress=progress)
+        for s in screens
+        for p in profiles
+        for c in captures
+    ]
+    return {"hardware": rows, "hardware_checks": check_hardware(rows)}

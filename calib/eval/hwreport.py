@@ -1,0 +1,56 @@
+"""report.json and report.md of `viewcomp evaluate --protocol hardware`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from viewcomp.calib.eval.hardware import WITHIN
+from viewcomp.calib.eval.report import write_report_files
+
+
+def _cell(row: dict[str, Any], angle: str) -> str:
+    e = row["emulated"][angle]["compensated"]
+    i = row["ideal"][angle]["compensated"]
+    return f"{e:.2f} / {i:.2f} ({e / i:.3f})"
+
+
+def write_hardware_report(out: Path, report: dict[str, Any]) -> None:
+    """The table of profiles x screens x captures into ``out``."""
+    cfg = report["config"]
+    w, h = cfg["projector"]
+    md = [
+        "# viewcomp on emulated hardware",
+        "",
+        f"Projector {w}x{h} (an emulated DLP: colour sub-frames, PWM bit planes, 2-4 refreshes "
+        f"of latency), seed {cfg['seed']}. Each row: `viewcomp capture`'s procedure on the "
+        "emulated devices, `calibrate`, the per-pixel compensation of natural images, and what "
+        "a viewer sees through the emulator's physics. Numbers: mean CIEDE2000 against the "
+        "white screen, emulated captures / ideal projector-space captures of the same world "
+        f"(ratio; the criterion is <= {WITHIN} at 60 and 125 degrees). Capture time: the "
+        "emulated devices' clock, what the capture would take on the real ones.",
+        "",
+        "| profile | screen | capture | status | capture time (s) | 60 deg | 90 deg | 125 deg |",
+        "|---|---|---|---|---:|---|---|---|",
+    ]
+    for r in report["hardware"]:
+        if r["refused"]:
+            md.append(f"| {r['profile']} | {r['screen']} | {r['capture']} | refused: "
+                      f"{r['refused']} | - | - | - | - |")  # fmt: skip
+            continue
+        md.append(
+            f"| {r['profile']} | {r['screen']} | {r['capture']} | calibrated | "
+            f"{r['capture_seconds']:.0f} | {_cell(r, '60')} | {_cell(r, '90')} | "
+            f"{_cell(r, '125')} |"
+        )
+    checks = report["hardware_checks"]
+    md += [
+        "",
+        f"Refused: {len(checks['refused'])} ({', '.join(checks['refused']) or 'none'}). "
+        f"Every calibrated row within {WITHIN} of ideal at 60 and 125 degrees, none refused: "
+        f"{checks['within']}.",
+        "",
+        f"Run time: {report['seconds']} s.",
+        "",
+    ]
+    write_report_files(out, report, md)
