@@ -61,3 +61,7 @@ def describe_os_error(exc: OSError, name: str | os.PathLike[str] | None = None) 
     fix = OS_FIXES.get(exc.errno or 0, "check the path and the disk")
     notes = "".join(f"; {n}" for n in getattr(exc, "__notes__", ()))
     return f"{prefix}{cause}{notes} - {fix}"
+
+
+class PlayerError(ViewcompError, RuntimeError):
+    """Playback cannot start (no display, no such monitor, empty playlist); says why."""

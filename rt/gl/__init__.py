@@ -4,4 +4,6 @@
   embeddable.
 - ``context``: The headless OpenGL 3.3 context (moderngl standalone, EGL), with one clear error
   if absent, and the one GL function loader (``gl_function``, ``default_proc_address``).
+- ``egl_suspend``: Releasing the EGL context current on this thread while a window's GLX
+  context is used.
 """

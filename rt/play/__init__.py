@@ -4,8 +4,14 @@
 - ``glfw_session``: glfw for viewcomp's windows: one initialised session and its monitors.
 - ``live``: Live eye input for playback: parsing, validation, smoothing and the listener
   threads.
+- ``overlay``: The player's overlay: angle, eye, fps and drops drawn into a texture.
 - ``player``: `viewcomp play`: fullscreen playback with a live viewing angle (glfw window, GL
-  3.3).
+  3.3): the state and the main loop.
+- ``player_options``: How `viewcomp play` plays: ``PlayerOptions``.
+- ``player_status``: What the player did and shows: statistics, status, the drop log.
+- ``playlist``: The playlist and the pump thread: files in order, opened and decoded.
+- ``show_control``: Show control and keys: pause, seek, next/previous, blackout, status.
+- ``window``: The window and GL life cycle: window, context, renderer, threads, release.
 - ``projector``: The projector of `viewcomp capture`: a fullscreen window showing each
   pattern pixel for pixel.
 - ``xvfb``: A private X server (Xvfb) for tests and headless runs of the player and of mpv.
