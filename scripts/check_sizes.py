@@ -102,8 +102,11 @@ def main(argv: list[str]) -> int:
             failed += 1
             print(f"TOO BIG {kind:8} {n:5d}/{limit} {where}")
     if failed:
-        print(f"check_sizes: {failed} over the limits (module {MODULE_MAX}, class {CLASS_MAX}, "
-              f"function {FUNCTION_MAX} lines)", file=sys.stderr)
+        print(
+            f"check_sizes: {failed} over the limits (module {MODULE_MAX}, class {CLASS_MAX}, "
+            f"function {FUNCTION_MAX} lines)",
+            file=sys.stderr,
+        )
         return 1
     print(f"check_sizes: within the limits ({reported} in files being rewritten elsewhere)")
     return 0

@@ -6,4 +6,6 @@
   if absent, and the one GL function loader (``gl_function``, ``default_proc_address``).
 - ``egl_suspend``: Releasing the EGL context current on this thread while a window's GLX
   context is used.
+- ``state_guard``: Saving and restoring a host's GL state around viewcomp's drawing, and the
+  raw GL calls moderngl lacks.
 """

@@ -1,6 +1,9 @@
 """Live use: the fullscreen player, live eye input, the embedding API, a private X server.
 
 - ``embed``: Compensation with a live eye into a host's framebuffer: the embedding API.
+- ``embed_present``: Drawing the embedded renderer's frame into the host's target.
+- ``embed_texture``: A frame from one of the host's GL textures into the embedded renderer.
+- ``frame_record``: What one frame of the embedded renderer used.
 - ``glfw_session``: glfw for viewcomp's windows: one initialised session and its monitors.
 - ``live``: Live eye input for playback: parsing, validation, smoothing and the listener
   threads.
@@ -14,5 +17,6 @@
 - ``window``: The window and GL life cycle: window, context, renderer, threads, release.
 - ``projector``: The projector of `viewcomp capture`: a fullscreen window showing each
   pattern pixel for pixel.
+- ``tone_worker``: The tone map (and the paper method's model) on a worker thread.
 - ``xvfb``: A private X server (Xvfb) for tests and headless runs of the player and of mpv.
 """

@@ -17,7 +17,8 @@ from viewcomp.rt.media.frames import Planes
 from viewcomp.rt.play.live import STATUS_ADDRESS, SourceCounts, eye_to_polar
 
 if TYPE_CHECKING:
-    from viewcomp.rt.play.embed import FrameRecord, LiveRenderer
+    from viewcomp.rt.play.embed import LiveRenderer
+    from viewcomp.rt.play.frame_record import FrameRecord
 
 log = logging.getLogger(__name__)
 

@@ -180,7 +180,7 @@ class WindowLifecycle:
         return (int(w), int(h)) != self.renderer.grid
 
     def _update_viewport(self) -> None:
-        from viewcomp.rt.play.embed import fit_viewport
+        from viewcomp.rt.play.embed_present import fit_viewport
 
         assert self.renderer is not None
         fb = tuple(int(v) for v in self._glfw.glfw.get_framebuffer_size(self._win))  # type: ignore[union-attr]
