@@ -39,6 +39,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from viewcomp.calib.errors import ShaderError
+
 if TYPE_CHECKING:
     import moderngl
 
@@ -58,10 +60,6 @@ _VERSION = re.compile(r"^\s*#\s*version\b")
 # Mesa: "1:4(1): error: ..."; NVIDIA: "1(4) : error ..."; both carry source and line.
 _MESA_LOC = re.compile(r"^(\d+):(\d+)\((\d+)\):\s*(.*)$")
 _NV_LOC = re.compile(r"^(\d+)\((\d+)\)\s*:\s*(.*)$")
-
-
-class ShaderError(RuntimeError):
-    """A shader failed to load, compile or link; the message names file, stage and line."""
 
 
 def list_shaders() -> list[str]:

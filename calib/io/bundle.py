@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import BundleError
 from viewcomp.calib.io import npy
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.npy import MAX_ARRAY_BYTES
@@ -55,10 +55,6 @@ _ZIP_ERRORS = (
     OverflowError,
     UnicodeDecodeError,
 )
-
-
-class BundleError(ViewcompError, ValueError):
-    """A calibration bundle that cannot be used; the message names file, cause and fix."""
 
 
 def save_bundle(

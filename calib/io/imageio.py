@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import CaptureError
 from viewcomp.calib.io import npy
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.paths import check_input_file
@@ -29,10 +29,6 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 # side (the largest GL texture on common drivers) and 64 megapixels (8K video is 33).
 MAX_IMAGE_SIDE = 16384
 MAX_IMAGE_PIXELS = 64_000_000
-
-
-class CaptureError(ViewcompError, ValueError):
-    """An image or capture set that cannot be used; the message names the file and the fix."""
 
 
 def read_image(path: str | Path) -> np.ndarray:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viewcomp.calib.errors import AudienceError
 from viewcomp.calib.world.eye import EyeError, check_angle, check_eye, eye_from_angle
 
 MAX_VIEWERS = 16  # viewers in one audience (the shader's loop bound)
@@ -33,10 +34,6 @@ _SPEC_HELP = (
     "give a zone A:B[:N] (degrees), angles or X,Y,Z eyes separated by ';', each optionally "
     'weighted with @W, e.g. 60:120, "60;90;120" or "0.2,0.03,0.5;-0.2,0.03,0.5"'
 )
-
-
-class AudienceError(EyeError):
-    """An audience SPEC or a set of viewers that cannot be used; names the item and the fix."""
 
 
 @dataclass(frozen=True, eq=False)

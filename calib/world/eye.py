@@ -20,15 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import EyeError
 
 ANGLE_MIN, ANGLE_MAX = 1.0, 179.0  # degrees; 0 and 180 lie in the screen's plane
 EYE_MIN_Z = 0.05  # metres in front of the screen: closer, the view terms degenerate
 EYE_LIMIT = 50.0  # metres: |x|, |y|, |z| of an eye position
-
-
-class EyeError(ViewcompError, ValueError):
-    """A viewing angle, eye position or track outside the limits; names the value and fix."""
 
 
 def _finite(value: Any, what: str, fix: str) -> float:

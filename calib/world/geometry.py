@@ -11,14 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import GeometryError
 from viewcomp.calib.world.rig import Device, Rig, unit_rows
 
 NORMAL = np.array([0.0, 0.0, 1.0])
-
-
-class GeometryError(ViewcompError, ValueError):
-    """The rig's geometry cannot be used (a pixel misses the screen, a device behind it)."""
 
 
 def meet_screen(origin: np.ndarray, rays: np.ndarray, device: str) -> np.ndarray:

@@ -66,7 +66,7 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import ExportError
 from viewcomp.calib.model.reference import View, audience_normal, screen_at, tone_terms
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
@@ -83,10 +83,6 @@ if TYPE_CHECKING:
 BASE_STEP = 4  # grid pixels per texel of the smooth base of a precision-8 export
 TONE_TABLE_STEP = 5.0  # degrees between the baked tone maps of the PARAM variant
 TONE_TABLE = np.arange(5.0, 175.0 + 1e-9, TONE_TABLE_STEP)
-
-
-class ExportError(ViewcompError, ValueError):
-    """An mpv shader cannot be made with these settings; the message says why and the fix."""
 
 
 @dataclass(frozen=True)

@@ -23,16 +23,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from viewcomp.calib.errors import MpvCheckError
 from viewcomp.rt.export.mpv import guard_script
 from viewcomp.rt.play.xvfb import Xvfb, XvfbError, xvfb_available
 
 # mpv's listing of the GLSL it failed to compile ("[vo/gpu/opengl] [ 12] ...", "... shader
 # source:"): context, not the error.
 _SOURCE_LINE = re.compile(r"^\[vo[^\]]*\] (?:\[\s*\d+\]|.*source:$|$)")
-
-
-class MpvCheckError(RuntimeError):
-    """The check could not run (no mpv, no display, no shader file); the message says why."""
 
 
 @dataclass(frozen=True)

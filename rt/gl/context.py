@@ -10,16 +10,12 @@ from typing import Any
 
 import moderngl
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import GLUnavailable
 
 GL_FIX = (
     "install the Debian packages libegl1 libgl1 libgl1-mesa-dri (scripts/setup.sh does it); "
     "Mesa llvmpipe (no GPU) is enough"
 )
-
-
-class GLUnavailable(ViewcompError, RuntimeError):
-    """No OpenGL 3.3 context can be made; the message names the cause and the fix."""
 
 
 def create_context(require: int = 330) -> moderngl.Context:

@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.errors import AudioDeviceError
+
 log = logging.getLogger(__name__)
 
 RATE = 48000
@@ -75,10 +77,6 @@ def _libasound() -> Any | None:
         lib.snd_lib_error_set_handler(_SILENCE)
         _LIB["lib"] = lib
     return _LIB["lib"]
-
-
-class AudioDeviceError(RuntimeError):
-    """The audio device failed while playing; the player goes on silently."""
 
 
 class AlsaOutput:

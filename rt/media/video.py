@@ -43,7 +43,7 @@ from typing import Any, Literal
 import av
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError, describe_os_error
+from viewcomp.calib.errors import VideoError, describe_os_error
 from viewcomp.calib.io.atomic import AtomicFile
 from viewcomp.rt.media.frames import ColorRange, Colorspace, Planes, fit_rect, pad_planes
 
@@ -65,10 +65,6 @@ DEFAULT_PRESET = "veryfast"
 _MP4_AUDIO = {"aac", "mp3", "alac", "opus", "flac", "ac3", "eac3"}
 _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1", 8: "7.1"}
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
-
-
-class VideoError(ViewcompError, RuntimeError):
-    """A video cannot be read or written; the message names the file and the fix."""
 
 
 @dataclass(frozen=True)

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import InputError
 from viewcomp.calib.world import eye as eye_limits
 
 log = logging.getLogger(__name__)
@@ -61,10 +61,6 @@ EYE_LIMIT = eye_limits.EYE_LIMIT
 MAX_LINE = 256  # characters of one stdin line (longer: rejected)
 MAX_MESSAGES_PER_PACKET = 64  # messages taken from one OSC bundle; the rest are rejected
 SNAP = 1e-6  # metres: the smoothed eye snaps to the target when this close
-
-
-class InputError(ViewcompError, ValueError):
-    """A malformed or out-of-range eye command; the message says what and what is expected."""
 
 
 @dataclass(frozen=True)

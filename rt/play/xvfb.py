@@ -13,9 +13,7 @@ import shutil
 import subprocess
 from typing import IO
 
-
-class XvfbError(RuntimeError):
-    """Xvfb is missing or did not start; the message says why."""
+from viewcomp.calib.errors import XvfbError
 
 
 def xvfb_available() -> bool:

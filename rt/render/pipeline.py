@@ -45,7 +45,7 @@ import numpy as np
 from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
-from viewcomp.calib.errors import ViewcompError, describe_os_error
+from viewcomp.calib.errors import ImageError, describe_os_error
 from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
 from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
@@ -84,10 +84,6 @@ class CompensationLike(Protocol):
     def base_model(self) -> RuntimeModel: ...
 
     def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> Any: ...
-
-
-class ImageError(ViewcompError, RuntimeError):
-    """An input image cannot be read or the output image cannot be written."""
 
 
 @dataclass(frozen=True)

@@ -15,16 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import TrackError
 from viewcomp.calib.io.paths import check_input_file
 from viewcomp.calib.world.audience import Audience
 from viewcomp.calib.world.eye import EyeError, check_angle, check_track, eye_from_angle
 
 EyeTrack = Callable[[float], "np.ndarray | Audience"]
-
-
-class TrackError(ViewcompError, ValueError):
-    """An angle track (CSV) is malformed; the message names the file, the line and the fix."""
 
 
 def constant_eye(x: float, y: float, z: float) -> EyeTrack:

@@ -28,14 +28,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import DetectorError
 
 # Below this width the 24x24 cascade misses most faces; the detector upsamples nothing.
 MIN_FACE_PX = 24
-
-
-class DetectorError(ViewcompError, RuntimeError):
-    """The face model cannot be loaded; the message says what is missing."""
 
 
 @functools.lru_cache(maxsize=1)

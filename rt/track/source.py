@@ -25,14 +25,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import SourceError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-
-
-class SourceError(ViewcompError, ValueError):
-    """A camera, video or image sequence that cannot be read; the message names it and says
-    what to give instead."""
 
 
 @dataclass(frozen=True)

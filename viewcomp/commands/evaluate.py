@@ -63,8 +63,8 @@ def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.eval.run import run as run_eval
-    from viewcomp.cli import UsageError
     from viewcomp.commands._common import Log, check_output_folder, parse_size
 
     check_output_folder(args.output)

@@ -53,11 +53,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
-    from viewcomp.calib.errors import OutputError, describe_os_error
+    from viewcomp.calib.errors import OutputError, UsageError, describe_os_error
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.io.imageio import read_rgb8
-    from viewcomp.cli import UsageError
     from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, guard_script, mpv_args
     from viewcomp.rt.media.frames import fit_rgb
 

@@ -119,7 +119,7 @@ def _tracker(src: str | None, rig: object, all_faces: bool) -> tuple[object, ...
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.cli import UsageError
+    from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import (
         InputError,
         check_angle,

@@ -56,10 +56,10 @@ def run(args: argparse.Namespace) -> int:
 
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.eval.preview import METHOD_NAMES, predict, preview_picture
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.imageio import read_rgb8, write_png
-    from viewcomp.cli import UsageError
     from viewcomp.rt.media.frames import fit_rgb
     from viewcomp.rt.render.pipeline import is_image
 

@@ -40,9 +40,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.world.audience import parse_audience
-    from viewcomp.cli import UsageError
     from viewcomp.rt.render.pipeline import is_image, render_file
     from viewcomp.rt.render.tracks import constant_audience, constant_eye, load_angle_track
 

@@ -82,7 +82,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def tracker_options(args: argparse.Namespace, rig: object) -> object:
     """The :class:`viewcomp.rt.track.run.TrackOptions` for parsed arguments and a rig."""
-    from viewcomp.cli import UsageError
+    from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import InputError, check_angle, check_eye
     from viewcomp.rt.track.run import TrackOptions
     from viewcomp.rt.track.tracker import TrackerConfig
@@ -111,7 +111,7 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.cli import UsageError
+    from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import InputError, parse_host_port
     from viewcomp.rt.track.publish import LinePublisher, OscPublisher, Publisher
     from viewcomp.rt.track.run import build, load_tracking_rig
