@@ -1,7 +1,10 @@
 """Eye positions: a viewing angle is a shorthand for an eye position (docs/MODEL.md section 1).
 
 The screen is the plane z = 0; the eye at angle theta is E = (d cos theta, h, d sin theta),
-theta = 90 straight in front, theta < 90 to the audience's right.
+theta = 90 straight in front, theta < 90 to the audience's right. This module is the one home
+of that formula (:func:`eye_from_angle`, and its inverse :func:`eye_to_polar`), of the limits
+and of their checks; the only other copy of the formula is GLSL's (``vc_eye`` of
+``shaders/mpv_pixel.glsl``), which takes the limits from here (:func:`glsl_defines`).
 
 The one validation of where a viewer can be, used by every command, the player's live input,
 the embedding API and angle tracks (docs/INTERFACES.md, "Limits"):
@@ -106,6 +109,14 @@ def eye_from_angle(theta_deg: float, distance: float, height: float) -> np.ndarr
     return np.array([distance * np.cos(t), height, distance * np.sin(t)])
 
 
-def angle_of_eye(eye: np.ndarray) -> float:
-    """The viewing angle (degrees) whose eye direction in the xz-plane matches ``eye``."""
-    return float(np.rad2deg(np.arctan2(eye[2], eye[0])))
+def eye_to_polar(eye: np.ndarray | Sequence[float]) -> tuple[float, float, float]:
+    """(angle degrees, distance d, height h) of an eye: the inverse of :func:`eye_from_angle`
+    (E = (d cos theta, h, d sin theta)); the angle in (-180, 180], not checked."""
+    x, y, z = (float(v) for v in eye)
+    return math.degrees(math.atan2(z, x)), math.hypot(x, z), y
+
+
+def glsl_defines() -> dict[str, str]:
+    """The limits as GLSL ``#define`` values (``VC_ANGLE_MIN``, ``VC_ANGLE_MAX``, degrees), so a
+    shader that turns an angle into an eye clamps it to these and no others."""
+    return {"VC_ANGLE_MIN": f"{ANGLE_MIN:.1f}", "VC_ANGLE_MAX": f"{ANGLE_MAX:.1f}"}

@@ -26,9 +26,10 @@ Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
   full solve every draw.
 
 The CPU side of the formula that both this class and the mpv export
-(:mod:`viewcomp.rt.export.mpv`) need lives here once: :func:`pixel_texels` (the per-pixel
-maps' layout), :func:`inverse_position` (the inverse LUT's squared position) and
-:func:`paper_rows` (the paper method's folded matrices).
+(:mod:`viewcomp.rt.export.mpv`) need is numpy only and lives once in
+:mod:`viewcomp.calib.model.shader_inputs`: ``pixel_texels`` (the per-pixel maps' layout),
+``inverse_position`` (the inverse LUT's squared position) and ``paper_rows`` (the paper
+method's folded matrices).
 
 Typical use::
 
@@ -44,7 +45,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import moderngl
@@ -52,6 +52,17 @@ import numpy as np
 
 from viewcomp.calib.model.reference import lut_forward
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.model.shader_inputs import (  # noqa: F401 (pixel_texels etc. re-exported)
+    MAP_TEXELS,
+    as_f32,
+    inv_pairs,
+    inverse_position,
+    inverse_scale,
+    lobe_table,
+    paper_rows,
+    pixel_texel_blocks,
+    pixel_texels,
+)
 from viewcomp.calib.world.audience import MAX_VIEWERS, Audience
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.context import (
@@ -71,141 +82,6 @@ _AUDIENCE, _BUILD_AUDIENCE = 5, 6  # an audience: solved per draw, its view cach
 _VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
 _PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience"}
 _SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe".split()
-MAP_TEXELS = 8  # per pixel in pixel_texels
-
-
-def pixel_texels(model: RuntimeModel) -> np.ndarray:
-    """The pixel method's per-pixel values as (H, W, 8, 4) float32 texels, in the order that
-    ``pixel_maps`` of compensate_core.glsl reads: texels 0..2 = row i of Ww | Aw[i], 3..5 =
-    row i of Wc | Ac[i], 6 = R | the camera's lobe (red), 7 = p.x, p.y (metres; p.z = 0, the
-    screen plane) | the camera's lobe (green, blue) (:attr:`RuntimeModel.cam_lobe`).
-
-    Raises:
-        ValueError: an array missing, of the wrong shape or not finite, or points off the
-            screen plane, naming it.
-    """
-    h, w = model.shape
-    out = np.empty((h, w, MAP_TEXELS, 4), np.float32)  # every slot is written below
-    for r0, block in pixel_texel_blocks(model):
-        out[r0 : r0 + len(block)] = block
-    return out
-
-
-def pixel_texel_blocks(model: RuntimeModel) -> Iterator[tuple[int, np.ndarray]]:
-    """:func:`pixel_texels` a block of rows at a time: (first row, (rows, W, 8, 4) float32),
-    the block one array reused (copy or use it before the next). The 128 bytes of a pixel are
-    filled while they are in the cache, and a caller that uploads each block never holds
-    the whole grid's texels (265 MB at 1080p: their first touch alone cost 0.3 s here).
-
-    Raises:
-        ValueError: as :func:`pixel_texels`, before the first block.
-    """
-    h, w = model.shape
-    maps = []
-    for mat, amb in (("Ww", "Aw"), ("Wc", "Ac")):
-        if getattr(model, mat) is None or getattr(model, amb) is None:
-            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
-        maps += [
-            _f32(getattr(model, mat), (h, w, 3, 3), mat),
-            _f32(getattr(model, amb), (h, w, 3), amb),
-        ]
-    refl = _f32(model.refl, (h, w, 3), "refl")
-    pos = _f32(model.pos, (h, w, 3), "pos")
-    if np.abs(pos[..., 2]).max(initial=0.0) > 1e-6:
-        raise ValueError("pos must lie on the screen plane z = 0 (docs/MODEL.md section 1)")
-    _f32(model.cam_eye, (3,), "cam_eye")
-    _lobe_table(model)
-    lobe = model.cam_lobe
-    if not np.all(np.isfinite(lobe)):
-        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and lobe")
-    step = max(1, (1 << 14) // max(w, 1))
-    buf = np.empty((min(step, h), w, MAP_TEXELS, 4), np.float32)
-    for r0 in range(0, h, step):
-        rows = slice(r0, r0 + step)
-        o = buf[: min(step, h - r0)]
-        for k in range(2):
-            o[:, :, 3 * k : 3 * k + 3, :3] = maps[2 * k][rows]
-            o[:, :, 3 * k : 3 * k + 3, 3] = maps[2 * k + 1][rows]
-        o[:, :, 6, :3] = refl[rows]
-        o[:, :, 7, :2] = pos[rows, :, :2]
-        o[:, :, 6, 3] = lobe[rows, :, 0]
-        o[:, :, 7, 2:] = lobe[rows, :, 1:]
-        yield r0, o
-
-
-def _lobe_table(model: RuntimeModel) -> np.ndarray:
-    """The lobe table as (n, 4) float32 texels (RGB | 0), n >= 2, checked."""
-    lobe = np.asarray(model.lobe)
-    if lobe.ndim != 2 or lobe.shape[1] != 3 or lobe.shape[0] < 2:
-        raise ValueError(f"lobe must be (n, 3) with n >= 2, got {lobe.shape}")
-    out = np.zeros((lobe.shape[0], 4), np.float32)
-    out[:, :3] = _f32(lobe, lobe.shape, "lobe")
-    return out
-
-
-def inverse_scale(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> np.ndarray:
-    """(N - 1)^2 / (hi - lo) per channel, float64 (3,): the inverse LUT's squared position
-    t2 per unit of value (``lut_inverse_sq`` in compensate_core.glsl: position sqrt(t2), t2
-    in [0, (N - 1)^2])."""
-    lo = np.asarray(inv_lo, np.float64)
-    span = np.maximum(np.asarray(inv_hi, np.float64) - lo, 1e-12)
-    return (n_inv - 1) ** 2 / span
-
-
-def inverse_position(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> dict[str, np.ndarray]:
-    """The pixel method's ``pixel_t2(y, scale, off, lo, hi)`` constants (compensate_core.glsl),
-    float64 (3,) each: t2 = clamp(scale y - off, lo, hi) is the squared LUT position of y.
-
-    It equals the reference's clamp of y to [0, 1], then of the position to
-    [0, (N - 1)^2], as one clamp: both are increasing, so the inner bounds map to the outer
-    ones.
-    """
-    s = inverse_scale(inv_lo, inv_hi, n_inv)
-    lo = np.asarray(inv_lo, np.float64)
-    top = float((n_inv - 1) ** 2)
-    return {
-        "scale": s, "off": s * lo,
-        "lo": np.clip(-s * lo, 0.0, top), "hi": np.clip(s * (1.0 - lo), 0.0, top),
-    }  # fmt: skip
-
-
-def paper_rows(
-    Ww: np.ndarray,
-    Wc_inv: np.ndarray,
-    inv_lo: np.ndarray,
-    inv_hi: np.ndarray,
-    n_inv: int,
-    alpha: float,
-    beta: float,
-) -> np.ndarray:
-    """The paper method's ``paper_t2`` rows (compensate_core.glsl), (3, 4) float64: row i =
-    (A[i], c[i]) with A = diag(s) alpha Wc_inv Ww and c = s (beta Wc_inv 1 - lo), s =
-    :func:`inverse_scale`, so that t2 = A fwd(I) + c is the inverse LUT's squared position."""
-    s = inverse_scale(inv_lo, inv_hi, n_inv)
-    wc_inv = np.asarray(Wc_inv, np.float64)
-    out = np.empty((3, 4), np.float64)
-    out[:, :3] = s[:, None] * (alpha * (wc_inv @ np.asarray(Ww, np.float64)))
-    out[:, 3] = s * (beta * wc_inv.sum(axis=1) - np.asarray(inv_lo, np.float64))
-    return out
-
-
-def _inv_pairs(inv_lut: np.ndarray, n: int) -> np.ndarray:
-    """(3, N, 2) float32: [c, i] = (inv_lut[i, c], inv_lut[i + 1, c]) (last pair repeats)."""
-    lut = _f32(inv_lut, (n, 3), "inv_lut")
-    out = np.empty((3, n, 2), np.float32)
-    out[:, :, 0] = lut.T
-    out[:, :-1, 1] = lut[1:].T
-    out[:, -1, 1] = lut[-1]
-    return out
-
-
-def _f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
-    arr = np.ascontiguousarray(np.asarray(a, dtype=np.float32))
-    if arr.shape != shape:
-        raise ValueError(f"{name} must be {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} holds NaN or infinite values")
-    return arr
 
 
 class Compensator:
@@ -311,11 +187,11 @@ class Compensator:
         cw, ch = (w + 1) // 2, (h + 1) // 2
         self._uv = self._tex((cw, ch), 2, "u1")
         self._uv_host = np.empty((ch, cw, 2), np.uint8)
-        fwd = _f32(model.fwd_lut, (256, 3), "fwd_lut")
+        fwd = as_f32(model.fwd_lut, (256, 3), "fwd_lut")
         levels = np.broadcast_to(np.arange(256, dtype=np.float32)[:, None], (256, 3))
         fwd_rows = np.ascontiguousarray(lut_forward(fwd, levels).T)  # exact at integer levels
         self._fwd = self._buffer_texture(fwd_rows, "r32f")
-        self._inv = self._buffer_texture(_inv_pairs(inv_lut, n_inv), "rg32f")
+        self._inv = self._buffer_texture(inv_pairs(inv_lut, n_inv), "rg32f")
         units: dict[str, Any] = {
             "u_rgb": self._rgb, "u_y": self._y, "u_uv": self._uv,
             "u_fwd": self._fwd, "u_inv": self._inv,
@@ -324,23 +200,23 @@ class Compensator:
         self._consts: dict[str, str | int] = {
             "GRID_W": w, "GRID_H": h, "N_INV": n_inv, "MAX_VIEWERS": MAX_VIEWERS,
         }  # fmt: skip
-        self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
-        self._inv_lo = _f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
-        self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
+        self._cam_eye = as_f32(model.cam_eye, (3,), "cam_eye")
+        self._inv_lo = as_f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
+        self._inv_hi = as_f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
         if model.method == "pixel":
             units.update(self._upload_pixel_maps(model))
-            lobe = _lobe_table(model)
+            lobe = lobe_table(model)
             units["u_lobe"] = self._buffer_texture(lobe, "rgba32f")
             self._consts["LOBE_N"] = int(lobe.shape[0])
             self._consts["LOBE_HALF"] = "true" if model.lobe_half else "false"
-            self._consts["LOBE_BLACK"] = vec_literal(_f32(model.lobe_black, (3,), "lobe_black"))
+            self._consts["LOBE_BLACK"] = vec_literal(as_f32(model.lobe_black, (3,), "lobe_black"))
             sq = inverse_position(self._inv_lo, self._inv_hi, n_inv)
             self._consts.update({f"SQ_{k.upper()}": vec_literal(v) for k, v in sq.items()})
         if model.method == "paper":
-            self._Ww = _f32(model.Ww, (3, 3), "Ww").astype(np.float64)
+            self._Ww = as_f32(model.Ww, (3, 3), "Ww").astype(np.float64)
             if model.Wc_inv is None:
                 raise ValueError("paper method needs model.Wc_inv (3, 3)")
-            self._Wc_inv = _f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+            self._Wc_inv = as_f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
         self._units = [(i, units.get(name)) for i, name in enumerate(_SAMPLERS)]
         self._view: tuple[Any, Any] | None = None  # (texture, framebuffer), made on first use
         self._view_eye: tuple[float, ...] | None = None  # the view the view cache holds
@@ -571,13 +447,13 @@ class Compensator:
         if self.method == "pixel" and (inv_lo is not None or inv_hi is not None):
             raise ValueError("the pixel method's inverse LUT domain is fixed: make a new one")
         if Wc_inv is not None:
-            self._Wc_inv = _f32(Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+            self._Wc_inv = as_f32(Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
         if inv_lut is not None:
-            self._inv.write(_inv_pairs(inv_lut, self._n_inv))
+            self._inv.write(inv_pairs(inv_lut, self._n_inv))
         if inv_lo is not None:
-            self._inv_lo = _f32(inv_lo, (3,), "inv_lo").astype(np.float64)
+            self._inv_lo = as_f32(inv_lo, (3,), "inv_lo").astype(np.float64)
         if inv_hi is not None:
-            self._inv_hi = _f32(inv_hi, (3,), "inv_hi").astype(np.float64)
+            self._inv_hi = as_f32(inv_hi, (3,), "inv_hi").astype(np.float64)
 
     # ----------------------------------------------------------------- per frame
     def upload(self, frame: np.ndarray) -> None:

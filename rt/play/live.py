@@ -45,6 +45,10 @@ import numpy as np
 
 from viewcomp.calib.errors import InputError
 from viewcomp.calib.world import eye as eye_limits
+from viewcomp.calib.world.eye import eye_from_angle, eye_to_polar
+
+# The angle <-> eye formula is viewcomp.calib.world.eye's; these names stay for callers.
+polar_to_eye = eye_from_angle
 
 log = logging.getLogger(__name__)
 
@@ -172,25 +176,17 @@ def _number(value: Any, what: str) -> float:
 
 
 def check_angle(value: Any) -> float:
-    """A viewing angle in degrees within the limits of :func:`viewcomp.calib.world.eye.check_angle`;
-    else InputError."""
-    v = _number(value, "an angle")
-    try:
-        return eye_limits.check_angle(v, "an angle")
-    except eye_limits.EyeError as exc:
-        raise InputError(str(exc)) from None
+    """A viewing angle in degrees: a number (:func:`_number`) within the limits of
+    :func:`viewcomp.calib.world.eye.check_angle`; else InputError (EyeError is one)."""
+    return eye_limits.check_angle(_number(value, "an angle"), "an angle")
 
 
 def check_eye(values: Sequence[Any]) -> tuple[float, float, float]:
-    """An eye position (x, y, z) metres within the limits of
-    :func:`viewcomp.calib.world.eye.check_eye`; else InputError."""
+    """An eye position (x, y, z) metres: numbers within the limits of
+    :func:`viewcomp.calib.world.eye.check_eye`; else InputError (EyeError is one)."""
     if len(values) != 3:
         raise InputError(f"an eye position is three numbers x y z (metres), got {len(values)}")
-    nums = [_number(v, "an eye coordinate") for v in values]
-    try:
-        x, y, z = eye_limits.check_eye(nums)
-    except eye_limits.EyeError as exc:
-        raise InputError(str(exc)) from None
+    x, y, z = eye_limits.check_eye([_number(v, "an eye coordinate") for v in values])
     return float(x), float(y), float(z)
 
 
@@ -374,18 +370,6 @@ def parse_osc_packet(
 
 
 # ----------------------------------------------------------------------- state
-def eye_to_polar(eye: np.ndarray) -> tuple[float, float, float]:
-    """(angle degrees, distance d, height h) of an eye: E = (d cos t, h, d sin t)."""
-    x, y, z = (float(v) for v in eye)
-    return math.degrees(math.atan2(z, x)), math.hypot(x, z), y
-
-
-def polar_to_eye(angle: float, distance: float, height: float) -> np.ndarray:
-    """E = (d cos t, h, d sin t), float64 (3,)."""
-    t = math.radians(angle)
-    return np.array([distance * math.cos(t), height, distance * math.sin(t)])
-
-
 class EyeState:
     """The target eye (set by commands) and the smoothed eye that follows it.
 
@@ -414,16 +398,16 @@ class EyeState:
             TypeError: a show-control command (the player's, not the eye's).
         """
         if isinstance(cmd, SetAngle):
-            self.target = polar_to_eye(cmd.degrees, self.distance, self.height)
+            self.target = eye_from_angle(cmd.degrees, self.distance, self.height)
         elif isinstance(cmd, SetAngleNorm):
             lo, hi = self.norm_range
-            self.target = polar_to_eye(lo + cmd.value * (hi - lo), self.distance, self.height)
+            self.target = eye_from_angle(lo + cmd.value * (hi - lo), self.distance, self.height)
         elif isinstance(cmd, SetEye):
             self.target = np.asarray(cmd.eye, np.float64)
         elif isinstance(cmd, NudgeAngle):
             angle, d, h = eye_to_polar(self.target)
             angle = min(ANGLE_MAX, max(ANGLE_MIN, angle + cmd.degrees))
-            self.target = polar_to_eye(angle, d, h)
+            self.target = eye_from_angle(angle, d, h)
         else:
             raise TypeError(f"not an eye command: {cmd!r}")
 

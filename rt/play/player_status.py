@@ -12,9 +12,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from viewcomp.calib.world.eye import eye_to_polar
 from viewcomp.rt.media.audio import AudioStats
 from viewcomp.rt.media.frames import Planes
-from viewcomp.rt.play.live import STATUS_ADDRESS, SourceCounts, eye_to_polar
+from viewcomp.rt.play.live import STATUS_ADDRESS, SourceCounts
 
 if TYPE_CHECKING:
     from viewcomp.rt.play.embed import LiveRenderer
