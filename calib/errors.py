@@ -74,12 +74,12 @@ class UsageError(ViewcompError):
     """A command-line value that is wrong: the message says which and what is expected."""
 
 
-class InputError(ViewcompError, ValueError):
-    """A malformed or out-of-range input value (a live eye or show-control command, an
-    option's value); the message says what and what is expected."""
+class InputError(UsageError, ValueError):
+    """A malformed or out-of-range value of a live eye or show-control command or of a
+    command-line option; the message says what and what is expected."""
 
 
-class EyeError(InputError):
+class EyeError(ViewcompError, ValueError):
     """A viewing angle, eye position or track outside the limits; names the value and fix."""
 
 
@@ -158,8 +158,9 @@ class ImageError(ViewcompError, RuntimeError):
     """An input image cannot be read or the output image cannot be written."""
 
 
-class ExportError(ViewcompError, ValueError):
-    """An mpv shader cannot be made with these settings; the message says why and the fix."""
+class ExportError(UsageError, ValueError):
+    """An mpv shader cannot be made with these settings; the message says why and the fix.
+    The settings are the command's options, so the command line refuses it as a bad option."""
 
 
 class MpvCheckError(ViewcompError, RuntimeError):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +35,7 @@ from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import check_captures
 from viewcomp.calib.io.compact import decode_screen, encode_screen
 from viewcomp.calib.model.lobe import LOBE_N, LOBE_PARAMS
-from viewcomp.calib.world.eye import EyeError, check_angle, check_eye
+from viewcomp.calib.world.eye import ErrorClass, EyeError, check_angle, check_eye
 from viewcomp.calib.world.geometry import ScreenGeometry
 from viewcomp.calib.world.rig import Rig, rig_from_dict, rig_to_toml
 
@@ -71,14 +72,20 @@ class Calibration:
                 f"fit ({why}); use --method pixel, or recalibrate with captures it can fit"
             )
 
-    def eye(self, angle: float | None = None, eye: np.ndarray | None = None) -> np.ndarray:
+    def eye(
+        self,
+        angle: float | None = None,
+        eye: Sequence[float] | np.ndarray | None = None,
+        error: ErrorClass = EyeError,
+    ) -> np.ndarray:
         """An eye position from an angle (the rig's viewer distance and height) or as given,
-        both checked against the limits of :mod:`viewcomp.calib.world.eye` (EyeError)."""
+        both checked against the limits of :mod:`viewcomp.calib.world.eye` (``error``,
+        EyeError unless the caller names its own)."""
         if eye is not None:
-            return check_eye(eye)
+            return check_eye(eye, error=error)
         if angle is None:
-            raise EyeError("give a viewing angle or an eye position")
-        angle = check_angle(angle)
+            raise error("give a viewing angle or an eye position")
+        angle = check_angle(angle, error=error)
         return self.rig.viewer.eye(angle)
 
     # -- the bundle ------------------------------------------------------------------------

@@ -362,10 +362,7 @@ def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
                           "16 with --param or --method paper")  # fmt: skip
     if req.audience is not None:
         return req, req.audience.centre
-    try:
-        e = cal.eye(angle=None if req.eye is not None else req.angle, eye=req.eye)
-    except ValueError as exc:  # EyeError: a limit of viewcomp.calib.world.eye
-        raise ExportError(str(exc)) from None
+    e = cal.eye(angle=None if req.eye is not None else req.angle, eye=req.eye, error=ExportError)
     return req, e
 
 

@@ -177,16 +177,17 @@ def _number(value: Any, what: str) -> float:
 
 def check_angle(value: Any) -> float:
     """A viewing angle in degrees: a number (:func:`_number`) within the limits of
-    :func:`viewcomp.calib.world.eye.check_angle`; else InputError (EyeError is one)."""
-    return eye_limits.check_angle(_number(value, "an angle"), "an angle")
+    :func:`viewcomp.calib.world.eye.check_angle`, which raises InputError here."""
+    return eye_limits.check_angle(_number(value, "an angle"), "an angle", InputError)
 
 
 def check_eye(values: Sequence[Any]) -> tuple[float, float, float]:
     """An eye position (x, y, z) metres: numbers within the limits of
-    :func:`viewcomp.calib.world.eye.check_eye`; else InputError (EyeError is one)."""
+    :func:`viewcomp.calib.world.eye.check_eye`, which raises InputError here."""
     if len(values) != 3:
         raise InputError(f"an eye position is three numbers x y z (metres), got {len(values)}")
-    x, y, z = eye_limits.check_eye([_number(v, "an eye coordinate") for v in values])
+    nums = [_number(v, "an eye coordinate") for v in values]
+    x, y, z = eye_limits.check_eye(nums, "an eye position", InputError)
     return float(x), float(y), float(z)
 
 

@@ -46,7 +46,7 @@ from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
 from viewcomp.calib.errors import ImageError, describe_os_error
-from viewcomp.calib.io.imageio import CaptureError, read_rgb8, write_png
+from viewcomp.calib.io.imageio import read_rgb8, write_png
 from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
@@ -400,11 +400,7 @@ def _video_loop(
 
 def _read_image(path: Path, grid: tuple[int, int]) -> np.ndarray:
     """Read an image as 8-bit RGB (H, W, 3) fitted to ``grid`` (H, W)."""
-    try:
-        rgb = read_rgb8(path)
-    except CaptureError as exc:
-        raise ImageError(str(exc)) from None
-    return fit_rgb(rgb, grid[1], grid[0])
+    return fit_rgb(read_rgb8(path, ImageError), grid[1], grid[0])
 
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:

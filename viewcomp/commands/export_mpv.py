@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.io.imageio import read_rgb8
-    from viewcomp.rt.export.mpv import ExportError, export_mpv_shader, guard_script, mpv_args
+    from viewcomp.rt.export.mpv import export_mpv_shader, guard_script, mpv_args
     from viewcomp.rt.media.frames import fit_rgb
 
     if (args.alpha is None) != (args.beta is None):
@@ -72,26 +72,23 @@ def run(args: argparse.Namespace) -> int:
 
         v = cal.rig.viewer
         audience = parse_audience(args.audience, v.distance, v.height or 0.0)
-    try:
-        sample = None
-        if args.tone_from:  # fitted to the grid as render fits it
-            h, w = cal.shape
-            sample = fit_rgb(read_rgb8(args.tone_from), w, h)
-        text, info = export_mpv_shader(
-            cal,
-            method=args.method,
-            angle=args.angle if args.angle is not None or args.eye else 90.0,
-            eye=parse_vec3(args.eye) if args.eye else None,
-            audience=audience,
-            param=args.param,
-            lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
-            tone_sample=sample,
-            tone=None if args.alpha is None else (args.alpha, args.beta),
-            precision=args.precision,
-            source=Path(args.calib).name,
-        )
-    except ExportError as exc:
-        raise UsageError(str(exc)) from None
+    sample = None
+    if args.tone_from:  # fitted to the grid as render fits it
+        h, w = cal.shape
+        sample = fit_rgb(read_rgb8(args.tone_from), w, h)
+    text, info = export_mpv_shader(
+        cal,
+        method=args.method,
+        angle=args.angle if args.angle is not None or args.eye else 90.0,
+        eye=parse_vec3(args.eye) if args.eye else None,
+        audience=audience,
+        param=args.param,
+        lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
+        tone_sample=sample,
+        tone=None if args.alpha is None else (args.alpha, args.beta),
+        precision=args.precision,
+        source=Path(args.calib).name,
+    )
     if args.guard and Path(args.guard).resolve() in (Path(args.output).resolve(),
                                                      Path(args.calib).resolve()):  # fmt: skip
         raise UsageError("--guard names the shader or the calibration; give its own file")

@@ -137,24 +137,21 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if not args.calib or not args.videos:
             raise UsageError("give a calibration bundle and at least one video (or a folder)")
+        osc = parse_host_port(args.osc) if args.osc else None
+        eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
+        angle = check_angle(args.angle)
+        feedback = parse_host_port(args.osc_feedback) if args.osc_feedback else None
+        lo, sep, hi = args.norm_angle_range.partition(":")
         try:
-            osc = parse_host_port(args.osc) if args.osc else None
-            eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
-            angle = check_angle(args.angle)
-            feedback = parse_host_port(args.osc_feedback) if args.osc_feedback else None
-            lo, sep, hi = args.norm_angle_range.partition(":")
-            try:
-                bounds = (float(lo), float(hi)) if sep else None
-            except ValueError:
-                bounds = None
-            if bounds is None:
-                raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got "
-                                 f"{args.norm_angle_range!r}")  # fmt: skip
-            norm_range = check_norm_range(*bounds)
-            if args.feedback_every <= 0:
-                raise InputError("--feedback-every is a number of seconds > 0, e.g. 1")
-        except InputError as exc:
-            raise UsageError(str(exc)) from None
+            bounds = (float(lo), float(hi)) if sep else None
+        except ValueError:
+            bounds = None
+        if bounds is None:
+            raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got "
+                             f"{args.norm_angle_range!r}")  # fmt: skip
+        norm_range = check_norm_range(*bounds)
+        if args.feedback_every <= 0:
+            raise InputError("--feedback-every is a number of seconds > 0, e.g. 1")
         from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
         from viewcomp.calib.fit.calibrate import Calibration
 
