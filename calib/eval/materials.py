@@ -34,7 +34,8 @@ from viewcomp.calib.comp.tonemap import choose_predicted_tone_map
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
-from viewcomp.calib.fit.calibrate import Calibration, calibrate, finite_list
+from viewcomp.calib.fit.calibrate import Calibration, calibrate
+from viewcomp.calib.io.calibration_bundle import finite_list
 from viewcomp.calib.io.captureset import capture_set_from_raw
 from viewcomp.calib.io.hdr import DEFAULT_STOPS
 from viewcomp.calib.model.reference import tone_terms
