@@ -1,5 +1,7 @@
 """Live use: the fullscreen player, live eye input, the embedding API, a private X server.
 
+- ``commands``: Live commands: the eye and show-control commands, their checks, the parsers
+  of stdin lines and OSC messages.
 - ``embed``: Compensation with a live eye into a host's framebuffer: the embedding API.
 - ``embed_present``: Drawing the embedded renderer's frame into the host's target.
 - ``embed_texture``: A frame from one of the host's GL textures into the embedded renderer.
@@ -7,6 +9,7 @@
 - ``glfw_session``: glfw for viewcomp's windows: one initialised session and its monitors.
 - ``live``: Live eye input for playback: parsing, validation, smoothing and the listener
   threads.
+- ``listeners``: The listener threads of live input (OSC, lines) and the hub they fill.
 - ``overlay``: The player's overlay: angle, eye, fps and drops drawn into a texture.
 - ``player``: `viewcomp play`: fullscreen playback with a live viewing angle (glfw window, GL
   3.3): the state and the main loop.
