@@ -43,7 +43,6 @@ Threading: call it from the thread whose GL context is current (the thread that 
 
 from __future__ import annotations
 
-import itertools
 import math
 from typing import Any
 
@@ -69,22 +68,21 @@ from viewcomp.rt.gl.context import (
     BufferTexture,
     ProcAddress,
     create_context,
-    finish,
     flush,
-    set_sampler_units,
 )
-from viewcomp.rt.media.frames import Planes, yuv_coefficients
-from viewcomp.shaders import build_program, vec_literal
+from viewcomp.rt.gl.frame_io import FrameIO
+from viewcomp.rt.gl.shader_passes import (
+    _CACHED,  # noqa: F401 (the cached METHOD, for tests)
+    _METHODS,
+    _SAMPLERS,
+    ShaderPasses,
+)
+from viewcomp.rt.gl.view_cache import ViewCache
+from viewcomp.rt.media.frames import Planes
+from viewcomp.shaders import vec_literal
 
-_METHODS = {"identity": 0, "pixel": 1, "paper": 2}
-_CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
-_AUDIENCE, _BUILD_AUDIENCE = 5, 6  # an audience: solved per draw, its view cache
-_VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
-_PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience"}
-_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe".split()
 
-
-class Compensator:
+class Compensator(FrameIO, ShaderPasses, ViewCache):
     """Runs the compensation shader for one :class:`RuntimeModel` on an (H, W) grid.
 
     Args:
@@ -231,160 +229,6 @@ class Compensator:
         self.set_tone(1.0, 0.0)
         self._yuv_key: tuple[str, str] = ("bt709", "limited")
 
-    def _view_block(self, n: int) -> tuple[int, int]:
-        """(bx, by): ``n`` texels of a pixel as a bx x by block of the view cache's target.
-
-        One row of ``n`` texels if ``n * W`` fits the driver's GL_MAX_TEXTURE_SIZE, else the
-        fewest rows that fit (3 x 2 for 5 texels at 3840 wide on llvmpipe's 16384).
-        """
-        max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        for by in range(1, n + 1):
-            bx = -(-n // by)
-            if bx * self.width <= max_size and by * self.height <= max_size:
-                return bx, by
-        raise ValueError(
-            f"grid {self.width}x{self.height} too large for the view cache "
-            f"(GL_MAX_TEXTURE_SIZE {max_size}); use view_cache=False"
-        )
-
-    def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
-        """The maps as one buffer texture: texel k of pixel (x, y) at 8 (y W + x) + k,
-        written a block of rows at a time (:func:`pixel_texel_blocks`)."""
-        row_bytes = self.width * MAP_TEXELS * 16
-        blocks = pixel_texel_blocks(model)  # checks the model before anything is made
-        first = next(blocks)
-        tex = self._buffer_texture(row_bytes * self.height, "rgba32f")
-        for r0, block in itertools.chain([first], blocks):
-            tex.write(block, offset=row_bytes * r0)
-        return {"u_maps": tex}
-
-    def _program(self, method: int) -> tuple[Any, Any]:
-        """(program, vertex array) of shader ``method`` on the current input, compiled once."""
-        inp = 0 if method in (_BUILD_VIEW, _BUILD_AUDIENCE) else self._input
-        yuv = self._yuv_key if inp == 1 else None
-        key = (method, inp, yuv)
-        if key not in self._programs:
-            defines: dict[str, str | int | float] = {**self._consts, "METHOD": method, "INPUT": inp}
-            if yuv is not None:
-                k = yuv_coefficients(*yuv)  # type: ignore[arg-type]
-                defines["YUV_K"] = f"ivec4({k.cy}, {k.cr_r}, {k.cb_b}, {k.y_off})"
-                defines["YUV_KG"] = f"ivec2({k.cb_g}, {k.cr_g})"
-            prog = self._track(build_program(self.ctx, defines=defines))
-            vao = self._track(self.ctx.vertex_array(prog, []))
-            # Distinct units: sampler types differ (2D and buffer samplers).
-            units = {n: i for i, n in enumerate(_SAMPLERS) if n in prog}
-            set_sampler_units(prog, units, self._loader)
-            self._programs[key] = (prog, vao)
-        return self._programs[key]
-
-    def _frame_values(self) -> bytes:
-        """The per-frame inputs v_frame[4] (vec4 each) of the current variant, as bytes."""
-        out = np.zeros((4, 4), np.float32)
-        if self._identity:
-            pass
-        elif self.method == "pixel":  # shader METHODs 1, 3 and 4 alike
-            out[0, :3] = self.eye
-            out[0, 3] = self.alpha
-            out[1, 0] = self.beta
-        elif self.method == "paper":
-            out[:3] = paper_rows(self._Ww, self._Wc_inv, self._inv_lo, self._inv_hi,
-                                 self._n_inv, self.alpha, self.beta)  # fmt: skip
-        return out.tobytes()
-
-    def _audience_values(self) -> bytes:
-        """The audience as the shader's u_eyes[MAX_VIEWERS]: (eye.xyz, weight) per viewer."""
-        out = np.zeros((MAX_VIEWERS, 4), np.float32)
-        if self.audience is not None:
-            k = len(self.audience)
-            out[:k, :3] = self.audience.eyes
-            out[:k, 3] = self.audience.weights
-        return out.tobytes()
-
-    def _shader_method(self) -> int:
-        """The shader METHOD for the next draw; advances the view cache when it is due.
-
-        The pixel method runs from the view cache (METHOD 3, ~0.7x the time on llvmpipe)
-        when the eye (or the audience) is the one the cache was built for: an audience's
-        cache holds its combined solve, so a held audience costs what a held eye does. The
-        cache is (re)built once the view has been the same for ``view_hold`` draws in a row
-        (a held viewer, a constant ``--angle``), in ``view_steps`` bands of rows, one band
-        before each draw, so that no single draw takes much longer than the others; until it
-        is complete, and while the view keeps moving, every draw solves in full (METHOD 1, or
-        5 for an audience).
-        """
-        if self._identity:
-            return 0
-        if self.method != "pixel":
-            return _METHODS[self.method]
-        aud = self.audience
-        view = tuple(float(v) for v in self.eye) if aud is None else (-1.0, *aud.key)
-        if view == self._last_eye:
-            self._held += 1
-        else:
-            self._last_eye, self._held = view, 0
-        if view == self._view_eye:
-            return _CACHED
-        build = _BUILD_VIEW if aud is None else _BUILD_AUDIENCE
-        if self.view_cache and self._held >= self.view_hold and self._build_view_band(view, build):
-            return _CACHED
-        return _METHODS["pixel"] if aud is None else _AUDIENCE
-
-    def _build_view_band(self, eye: tuple[float, ...], build: int = _BUILD_VIEW) -> bool:
-        """Render the next band of the view cache for the view ``eye`` (an eye, or an
-        audience's key) with shader ``build``; True once it is complete."""
-        bx, by = self._view_block(_VIEW_TEXELS)
-        size = (bx * self.width, by * self.height)
-        row_bytes = 16 * size[0]
-        if self._view is None:
-            fbo = self._track(self.ctx.framebuffer(color_attachments=[self._tex(size, 4, "f4")]))
-            view = self._buffer_texture(row_bytes * size[1], "rgba32f")
-            self._view = (view, fbo)
-            self._consts["VIEW_BX"], self._consts["VIEW_BY"] = bx, by
-            self._units[_SAMPLERS.index("u_view")] = (_SAMPLERS.index("u_view"), view)
-        if self._building != eye:  # a new eye: start over (the old bands are stale)
-            self._building, self._band_row = eye, 0
-            self._view_eye = None
-        view, fbo = self._view
-        rows = -(-self.height // max(1, self.view_steps))
-        r0, r1 = self._band_row, min(self.height, self._band_row + rows)
-        band = (0, by * r0, size[0], by * (r1 - r0))
-        fbo.viewport = (0, 0, *size)
-        fbo.scissor = band
-        fbo.use()
-        self._render(build, flip_y=0)
-        fbo.scissor = None
-        # Into the buffer texture the draws read (a copy within the driver, no round trip).
-        fbo.read_into(view.buffer, viewport=band, components=4, dtype="f4",
-                      write_offset=row_bytes * by * r0)  # fmt: skip
-        self._band_row = r1
-        if r1 < self.height:
-            return False
-        self._view_eye, self._building = eye, None
-        return True
-
-    def _render(self, method: int, flip_y: int) -> None:
-        prog, vao = self._program(method)
-        if "u_frame" in prog:  # the linker may keep only the elements a variant reads
-            u = prog["u_frame"]
-            u.write(self._frame_values()[: 16 * max(1, u.array_length)])
-        if "u_flip_y" in prog:
-            prog["u_flip_y"].value = flip_y
-        if "u_n_eyes" in prog:
-            prog["u_n_eyes"].value = len(self.audience) if self.audience is not None else 0
-        if "u_eyes" in prog:
-            prog["u_eyes"].write(self._audience_values())
-        for unit, tex in self._units:
-            if tex is not None:
-                tex.use(unit)
-        vao.render(moderngl.TRIANGLES, vertices=3)
-
-    def _draw(self, framebuffer: Any, viewport: tuple[int, int, int, int], flip_y: int) -> None:
-        method = self._shader_method()  # may render the view cache first
-        self.last_path = _PATHS[method]
-        framebuffer.use()
-        self.ctx.viewport = viewport
-        self._render(method, flip_y)
-
     # ----------------------------------------------------------------- state
     @property
     def identity(self) -> bool:
@@ -456,41 +300,6 @@ class Compensator:
             self._inv_hi = as_f32(inv_hi, (3,), "inv_hi").astype(np.float64)
 
     # ----------------------------------------------------------------- per frame
-    def upload(self, frame: np.ndarray) -> None:
-        """Upload an RGB frame (H, W, 3) uint8 (levels 0..255) as the next input."""
-        if frame.shape != (self.height, self.width, 3) or frame.dtype != np.uint8:
-            raise ValueError(
-                f"frame must be uint8 {(self.height, self.width, 3)}, got {frame.dtype} "
-                f"{frame.shape} (scale with viewcomp.rt.media.frames.fit_rgb first)"
-            )
-        self._rgb.write(np.ascontiguousarray(frame))
-        self._input = 0
-
-    def upload_planes(self, planes: Planes) -> None:
-        """Upload a yuv420p frame (converted to RGB levels in the shader, see yuv.glsl)."""
-        planes.check()
-        if planes.shape != (self.height, self.width):
-            raise ValueError(
-                f"planes must be {(self.height, self.width)}, got {planes.shape} "
-                "(the video reader fits frames to the grid)"
-            )
-        yuv_coefficients(planes.colorspace, planes.color_range)  # validates both
-        self._y.write(np.ascontiguousarray(planes.y))
-        self._uv_host[..., 0] = planes.u  # interleave: one chroma texture, half the reads
-        self._uv_host[..., 1] = planes.v
-        self._uv.write(self._uv_host)
-        self._yuv_key = (planes.colorspace, planes.color_range)
-        self._input = 1
-
-    def upload_buffer(self, buffer: moderngl.Buffer) -> None:
-        """Upload an RGB frame already on the GPU: a pixel buffer of this context holding
-        (H, W, 3) uint8 levels in :meth:`upload`'s order (a copy within the driver)."""
-        if buffer.size < self.width * self.height * 3:
-            raise ValueError(f"the buffer holds {buffer.size} bytes, a frame needs "
-                             f"{self.width * self.height * 3}")  # fmt: skip
-        self._rgb.write(buffer, alignment=1)
-        self._input = 0
-
     def draw(self) -> None:
         """Run the shader on the last upload into the own framebuffer.
 
@@ -499,21 +308,6 @@ class Compensator:
         """
         self._draw(self.fbo, (0, 0, self.width, self.height), flip_y=0)
         flush(self.ctx)
-
-    def read(self, out: np.ndarray | None = None) -> np.ndarray:
-        """Read back the last draw as (H, W, 3) uint8 (into ``out`` if given, no copy).
-
-        Waits for the draw with the GIL released (:func:`viewcomp.rt.gl.context.finish`), so
-        other Python threads (decoder, encoder) run meanwhile.
-        """
-        shape = (self.height, self.width, 3)
-        if out is None:
-            out = np.empty(shape, np.uint8)
-        elif out.shape != shape or out.dtype != np.uint8 or not out.flags.c_contiguous:
-            raise ValueError(f"out must be a C-contiguous uint8 array {shape}, got {out.shape}")
-        finish(self.ctx)
-        self.fbo.read_into(out, components=3, alignment=1)
-        return out
 
     def render(self, frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Compensate one RGB frame (H, W, 3) uint8 -> (H, W, 3) uint8 for the projector."""
