@@ -50,11 +50,11 @@ from viewcomp.calib.io.imageio import read_rgb8, write_png
 from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
+from viewcomp.rt.media.encode_thread import EncodeThread
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
 from viewcomp.rt.media.video import (
     DEFAULT_PRESET,
     AudioItem,
-    EncodeThread,
     VideoReader,
     VideoWriter,
 )
