@@ -38,6 +38,37 @@ from viewcomp.rt.testing import smooth_frame, synthetic_model
 D, HT = 0.5, 0.035
 
 
+def _report(
+    args: argparse.Namespace,
+    size: tuple[int, int],
+    renderer: object,
+    load0: tuple[float, float, float],
+    times: dict[str, list[float]],
+    ratios: list[float],
+) -> dict[str, object]:
+    """The JSON report of a run: the set-up, the machine and the medians."""
+    w, h = size
+    return {
+        "when": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "size": [w, h],
+        "viewers": args.viewers,
+        "rounds": args.rounds,
+        "draws_per_round": args.draws,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "gl": renderer,
+            "load_start": [round(v, 2) for v in load0],
+            "load_end": [round(v, 2) for v in os.getloadavg()],
+        },
+        "median_ms": {k: round(statistics.median(v), 2) for k, v in times.items()},
+        "held_audience_over_held_eye": {
+            "median": round(statistics.median(ratios), 3),
+            "min": round(min(ratios), 3),
+            "max": round(max(ratios), 3),
+        },
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1920x1080")
@@ -107,25 +138,7 @@ def main(argv: list[str] | None = None) -> int:
             comp.view_cache = True
     renderer = ctx.info.get("GL_RENDERER")
     ctx.release()
-    report = {
-        "when": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "size": [w, h],
-        "viewers": args.viewers,
-        "rounds": args.rounds,
-        "draws_per_round": args.draws,
-        "machine": {
-            "cpus": os.cpu_count(),
-            "gl": renderer,
-            "load_start": [round(v, 2) for v in load0],
-            "load_end": [round(v, 2) for v in os.getloadavg()],
-        },
-        "median_ms": {k: round(statistics.median(v), 2) for k, v in times.items()},
-        "held_audience_over_held_eye": {
-            "median": round(statistics.median(ratios), 3),
-            "min": round(min(ratios), 3),
-            "max": round(max(ratios), 3),
-        },
-    }
+    report = _report(args, (w, h), renderer, load0, times, ratios)
     json.dump(report, sys.stdout, indent=1)
     print()
     return 0

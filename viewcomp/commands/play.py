@@ -118,13 +118,26 @@ def _tracker(src: str | None, rig: object, all_faces: bool) -> tuple[object, ...
     return (TrackerThread(pipeline, all_faces),)
 
 
+def _norm_range(text: str) -> tuple[float, float]:
+    """``--norm-angle-range LO:HI`` (degrees) as checked by ``check_norm_range``."""
+    from viewcomp.rt.play.live import InputError, check_norm_range
+
+    lo, sep, hi = text.partition(":")
+    try:
+        bounds = (float(lo), float(hi)) if sep else None
+    except ValueError:
+        bounds = None
+    if bounds is None:
+        raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got {text!r}")
+    return check_norm_range(*bounds)
+
+
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import (
         InputError,
         check_angle,
         check_eye,
-        check_norm_range,
         parse_host_port,
     )
     from viewcomp.rt.play.player import Player, PlayerError, PlayerOptions, list_monitors
@@ -141,15 +154,7 @@ def run(args: argparse.Namespace) -> int:
         eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
         angle = check_angle(args.angle)
         feedback = parse_host_port(args.osc_feedback) if args.osc_feedback else None
-        lo, sep, hi = args.norm_angle_range.partition(":")
-        try:
-            bounds = (float(lo), float(hi)) if sep else None
-        except ValueError:
-            bounds = None
-        if bounds is None:
-            raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got "
-                             f"{args.norm_angle_range!r}")  # fmt: skip
-        norm_range = check_norm_range(*bounds)
+        norm_range = _norm_range(args.norm_angle_range)
         if args.feedback_every <= 0:
             raise InputError("--feedback-every is a number of seconds > 0, e.g. 1")
         from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
