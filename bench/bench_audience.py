@@ -6,7 +6,7 @@ hits them alike) of
 
 - ``held_eye``: one eye held still: drawn from the view cache;
 - ``held_audience``: ``--viewers`` viewers held still: drawn from the view cache, which holds
-  their combined solve - the issue asks that this equals ``held_eye``;
+  their combined solve, so it should cost what ``held_eye`` does;
 - ``moving_eye``: the eye moves every draw: the full per-pixel solve;
 - ``moving_audience``: the audience moves every draw: the normal equations of every viewer
   per pixel, per draw;

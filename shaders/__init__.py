@@ -68,7 +68,7 @@ def list_shaders() -> list[str]:
     return sorted(p.name for p in root.iterdir() if p.name.endswith(".glsl"))
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def load(name: str) -> str:
     """The text of the package's shader file ``name`` (e.g. ``"yuv.glsl"``), cached.
 

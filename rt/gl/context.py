@@ -84,13 +84,13 @@ BUFFER_FORMATS = {"r32f": 0x822E, "rg32f": 0x8230, "rgba32f": 0x8814, "rgba32ui"
 ProcAddress = Callable[[str], int]  # a GL function loader: name -> address (0: none)
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def libegl() -> ctypes.CDLL:
     """The system's libEGL, loaded once (raises OSError when it is missing)."""
     return ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def egl_proc_address() -> ProcAddress:
     """EGL's ``eglGetProcAddress`` as a loader (libglvnd also dispatches it to a current GLX
     context). Raises OSError without libEGL."""
@@ -132,7 +132,7 @@ def default_proc_address() -> ProcAddress:
     return lambda name: int(fn(name.encode()) or 0)
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def gl_function(
     name: str, argtypes: tuple[Any, ...], loader: ProcAddress | None = None, restype: Any = None
 ) -> Any:
