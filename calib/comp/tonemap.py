@@ -155,7 +155,7 @@ def _best_per_alpha(
 def choose_tone_map(
     u: np.ndarray,
     v: np.ndarray,
-    c: np.ndarray,
+    c: np.ndarray | float,
     lo: np.ndarray | float,
     hi: np.ndarray | float,
     lam: float = DEFAULT_LAMBDA,

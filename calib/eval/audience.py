@@ -166,7 +166,7 @@ def walk_rows(
     case = world.case(screen)
     scale = float(world.sim.rig.viewer.distance / np.mean(np.linalg.norm(truth, axis=1)))
     at90, _ = case.pixel.compensate_image(img, world.eye(90.0))
-    rows = []
+    rows: list[dict[str, Any]] = []
     for i in range(0, len(times), max(1, int(every))):
         late = tracked[max(0, i - int(delay))]
         eye, seen = truth[i] * scale, late * scale

@@ -157,7 +157,7 @@ def plot_tradeoff(world: World, path: Path, screen: str = "magenta") -> list[dic
     cw = white_response(small, thumb).astype(np.float64)
     _, m_inv, amb = comp._screen(small, eye)
     u, v, c = tone_terms(m_inv, cw, amb)
-    out = []
+    out: list[dict[str, Any]] = []
     for lam in (0.03, 0.1, 0.3, 1.0, 3.0, 10.0):
         for mu in (0.0, 1.0):
             t = choose_tone_map(u, v, c, 0.0, 1.0, lam, beta_weight=mu, beta_scale=cw.mean())

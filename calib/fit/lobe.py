@@ -209,6 +209,7 @@ def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         )
         if best is None or r.cost < best.cost:
             best = r
+    assert best is not None  # the loop above runs at least once
     rms = np.sqrt(np.mean((model(best.x) - y) ** 2, axis=0))
     design = np.stack([np.ones_like(lx), lx], axis=1)
     pl = np.empty(3)

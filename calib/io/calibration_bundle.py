@@ -69,6 +69,7 @@ def save_calibration(
         "info": info,
     }
     if p is not None:
+        assert p.stat_mask is not None  # calibrate_paper sets it
         arrays |= {
             "paper.n": p.n,
             "paper.means_c": np.stack([p.means_c[k] for k in (*CHANNEL_PATTERNS, "gray")]),

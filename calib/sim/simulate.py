@@ -171,6 +171,7 @@ def simulate_capture_set(
             kind = "HDR: the white gray at" if hdr_stops else "8-bit: nothing above"
             level = HDR_GRAY_LEVEL if hdr_stops else EXPOSURE_LIMIT
             log(f"exposure auto: {exposure:.4g} ({kind} {level:g} of full scale)")
+    assert not isinstance(exposure, str), "the only word exposure takes is 'auto'"
     if space == "camera":
         return simulate_camera_set(
             out_dir,
@@ -204,14 +205,17 @@ def choose_exposure(
     scale = 1.0 / sim.camera.exposure
     if cam is not None:
         size = sim.rig.projector.resolution
-        todo = [(white, p) for p in camera_patterns(size, black, "chessboard").values()]
+        todo: list[tuple[AnyScreen, np.ndarray]] = [
+            (white, p) for p in camera_patterns(size, black, "chessboard").values()
+        ]
         todo += [(screen, p) for p in camera_patterns(size, black, "all").values()]
         todo.insert(0, (white, camera_patterns(size, False, "none")["gray"]))
         return auto_exposure(
             lambda s, p: cam.linear(s, p) * scale, todo, hdr_stops is not None, cam.view.inside
         )
     pats = projector_patterns(sim.rig.projector.resolution, black)
-    todo = [(white, pats["gray"])] + [(s, p) for s in (white, screen) for p in pats.values()]
+    todo = [(white, pats["gray"])]
+    todo += [(s, p) for s in (white, screen) for p in pats.values()]
     eye = sim.geometry.camera
     return auto_exposure(
         lambda s, p: sim.expose(sim.radiance(s, p, eye), vignetting=True) * scale,

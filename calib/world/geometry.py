@@ -52,7 +52,7 @@ def screen_points(projector: Device) -> np.ndarray:
     Raises:
         GeometryError: when some pixel's ray does not reach the screen in front of it.
     """
-    return meet_screen(projector.position, projector.pixel_rays(), "projector")
+    return meet_screen(np.asarray(projector.position), projector.pixel_rays(), "projector")
 
 
 def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
@@ -61,7 +61,7 @@ def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
     Raises:
         GeometryError: a ray does not meet the screen in front of the projector.
     """
-    return meet_screen(projector.position, projector.rays_through(uv), "projector")
+    return meet_screen(np.asarray(projector.position), projector.rays_through(uv), "projector")
 
 
 def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:

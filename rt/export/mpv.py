@@ -225,12 +225,14 @@ def held_rows(
         n_inv = np.linalg.inv(n)
         m_inv = n_inv @ s_t
         d = np.einsum("hwij,hwj->hwi", n_inv, q)
+        assert model.Aw is not None  # a pixel model always has it
         u, v, _ = tone_terms(m_inv, model.Aw.astype(np.float64), np.zeros_like(d))
         c = -d
     else:
         one = eye.eyes[0] if isinstance(eye, Audience) else eye
         m, amb = screen_at(model, np.asarray(one, np.float32))
         m_inv = np.linalg.inv(m.astype(np.float64))
+        assert model.Aw is not None  # a pixel model always has it
         u, v, c = tone_terms(m_inv, model.Aw.astype(np.float64), amb.astype(np.float64))
     g = np.einsum("hwij,hwjk->hwik", m_inv, model.Ww.astype(np.float64))
     rows = np.concatenate([alpha * g, (alpha * u + beta * v + c)[..., None]], axis=-1)
@@ -385,6 +387,7 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     if req.method == "pixel":
         _build_pixel(cal, req, out, comp, model, sample, view)
     else:
+        assert model.Wc_inv is not None  # a paper model always has it
         rows = paper_rows(model.Ww, model.Wc_inv, model.inv_lo, model.inv_hi, n_inv, alpha, beta)
         out.defines.update({f"VC_A{i}": vec_literal(rows[i]) for i in range(3)})
     out.binds.append("VC_LUT")

@@ -29,7 +29,8 @@ def create_context(require: int = 330) -> moderngl.Context:
         GLUnavailable: EGL or the GL driver is missing, or the version is below ``require``.
     """
     try:
-        ctx = moderngl.create_standalone_context(backend="egl", require=require)
+        # moderngl's stub types **settings as dicts; backend is a string (moderngl's docs)
+        ctx = moderngl.create_standalone_context(backend="egl", require=require)  # type: ignore[arg-type]
     except Exception as exc:  # moderngl/glcontext raise plain Exception for a missing lib
         raise GLUnavailable(
             f"cannot create an OpenGL {require // 100}.{require % 100 // 10} context through "
@@ -164,7 +165,9 @@ def set_sampler_units(
     uniform1i = gl_function("glUniform1i", (ctypes.c_int, ctypes.c_int), loader)
     use(program.glo)
     for name, unit in units.items():
-        uniform1i(program[name].location, unit)
+        member = program[name]
+        assert isinstance(member, moderngl.Uniform), f"{name} is not a uniform"
+        uniform1i(member.location, unit)
     use(0)
 
 

@@ -60,6 +60,8 @@ class ShaderPasses:
 
         def _buffer_texture(self, data: np.ndarray | int, fmt: str) -> BufferTexture: ...
 
+        def _shader_method(self) -> int: ...
+
     def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
         """The maps as one buffer texture: texel k of pixel (x, y) at 8 (y W + x) + k,
         written a block of rows at a time (:func:`pixel_texel_blocks`)."""

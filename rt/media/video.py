@@ -231,7 +231,7 @@ class VideoReader:
         if (fw, fh) == (tw, th):
             y, u, v = (np.ascontiguousarray(a) for a in planes)
         else:
-            y, u, v = pad_planes(*planes, x0, y0, tw, th, crange)
+            y, u, v = pad_planes(planes[0], planes[1], planes[2], x0, y0, tw, th, crange)
         t = float(frame.time) - t0 if frame.time is not None else 0.0
         return Planes(y, u, v, cspace, crange, t)
 

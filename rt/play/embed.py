@@ -193,7 +193,8 @@ class LiveRenderer(Presentation, TextureInput):
         aud = Audience.of(audience)
         if len(aud) == 1:
             self.audience = None
-            self.set_eye(*aud.eyes[0], smooth=smooth)
+            x, y, z = (float(c) for c in aud.eyes[0])
+            self.set_eye(x, y, z, smooth=smooth)
             return
         if self.comp.method != "pixel":
             raise ValueError("an audience of several viewers needs the pixel method")
