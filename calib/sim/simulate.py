@@ -171,7 +171,6 @@ def simulate_capture_set(
             kind = "HDR: the white gray at" if hdr_stops else "8-bit: nothing above"
             level = HDR_GRAY_LEVEL if hdr_stops else EXPOSURE_LIMIT
             log(f"exposure auto: {exposure:.4g} ({kind} {level:g} of full scale)")
-    assert not isinstance(exposure, str), "the only word exposure takes is 'auto'"
     if space == "camera":
         return simulate_camera_set(
             out_dir,
@@ -180,7 +179,7 @@ def simulate_capture_set(
             rig=rig,
             black=black,
             projector=proj,
-            exposure=exposure,
+            exposure=None if exposure is None else float(exposure),  # "auto" is resolved
             hdr_stops=hdr_stops,
         )
     if exposure is not None:
