@@ -44,9 +44,14 @@ def main(argv: list[str] | None = None) -> int:
 
             def make(fd: int) -> Player:
                 opts = PlayerOptions(
-                    windowed=True, audio=False, stdin_fd=fd, osc=("127.0.0.1", 0),
-                    loop=True, eye_tau=0.1, max_seconds=180.0,
-                )  # fmt: skip
+                    windowed=True,
+                    audio=False,
+                    stdin_fd=fd,
+                    osc=("127.0.0.1", 0),
+                    loop=True,
+                    eye_tau=0.1,
+                    max_seconds=180.0,
+                )
                 return Player(cal, [clip], opts)
 
             res = fuzz_player(make, args.items)

@@ -136,8 +136,11 @@ def main(argv: list[str] | None = None) -> int:
         "load_avg_start": [round(x, 2) for x in os.getloadavg()],
     }  # fmt: skip
     kinds = ("literals", "ubo_frame", "ubo_all")
-    for name, method, cached in (("pixel_cached", "pixel", True), ("pixel_solve", "pixel", False),
-                                 ("paper", "paper", False)):  # fmt: skip
+    for name, method, cached in (
+        ("pixel_cached", "pixel", True),
+        ("pixel_solve", "pixel", False),
+        ("paper", "paper", False),
+    ):
         comps = {k: _make(k, method, cached, ctx, size) for k in kinds}  # type: ignore[arg-type]
         try:
             outs = {k: c.read() for k, c in comps.items()}

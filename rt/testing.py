@@ -182,8 +182,16 @@ def make_test_video(
     base = smooth_frame(width + n, height, seed=1)
     frames = (np.ascontiguousarray(base[:, i : i + width]) for i in range(n))
     options = {"preset": "ultrafast", "crf": "20"} if codec == "libx264" else None
-    write_clip(path, frames, rate, tone=audio, audio_codec=audio_codec,
-               sample_rate=sample_rate, codec=codec, options=options)  # fmt: skip
+    write_clip(
+        path,
+        frames,
+        rate,
+        tone=audio,
+        audio_codec=audio_codec,
+        sample_rate=sample_rate,
+        codec=codec,
+        options=options,
+    )
 
 
 def write_clip(

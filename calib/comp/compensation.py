@@ -202,8 +202,9 @@ class Compensation:
             mk, ak, p, d = self._audience(small, eye)
             u = np.einsum("...ij,...j->...i", p, cw)
             viewers = (mk, ak, eye.weights)
-            return choose_predicted_tone_map(u, p.sum(axis=-1), -d, mk[0], cw, 0.0, 1.0, start,
-                                             viewers)  # fmt: skip
+            return choose_predicted_tone_map(
+                u, p.sum(axis=-1), -d, mk[0], cw, 0.0, 1.0, start, viewers
+            )
         m, m_inv, a = self._screen(small, eye)
         u, v, c = tone_terms(m_inv, cw, a)
         return choose_predicted_tone_map(u, v, c, m, cw, 0.0, 1.0, start)

@@ -196,8 +196,11 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
     if problem is None and not root.is_dir():
         problem = "is a file, not a folder"
     if problem is not None:
-        what = f"not found: capture set folder {root}" if problem == "not found" else (
-            f"capture set folder {root}: {problem}")  # fmt: skip
+        what = (
+            f"not found: capture set folder {root}"
+            if problem == "not found"
+            else (f"capture set folder {root}: {problem}")
+        )
         raise CaptureError(f"{what} - give the folder written by {_FIX}")
     rig_file = root / RIG_FILE
     if (problem := path_problem(rig_file)) is not None:

@@ -112,9 +112,11 @@ def inverse_position(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> dict
     lo = np.asarray(inv_lo, np.float64)
     top = float((n_inv - 1) ** 2)
     return {
-        "scale": s, "off": s * lo,
-        "lo": np.clip(-s * lo, 0.0, top), "hi": np.clip(s * (1.0 - lo), 0.0, top),
-    }  # fmt: skip
+        "scale": s,
+        "off": s * lo,
+        "lo": np.clip(-s * lo, 0.0, top),
+        "hi": np.clip(s * (1.0 - lo), 0.0, top),
+    }
 
 
 def paper_rows(

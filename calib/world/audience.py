@@ -146,8 +146,7 @@ def parse_audience(spec: str, distance: float, height: float) -> Audience:
                 n = ZONE_VIEWERS if len(parts) == 2 else _number(parts[2], item)
                 if n != int(n):
                     raise AudienceError(f"--audience: a zone's count is whole, got {item!r}")
-                z = zone(_number(parts[0], item), _number(parts[1], item), int(n), distance,
-                         height)  # fmt: skip
+                z = zone(_number(parts[0], item), _number(parts[1], item), int(n), distance, height)
                 eyes.extend(z.eyes)
                 weights.extend([weight / len(z)] * len(z))
             elif "," in body:

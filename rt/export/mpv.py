@@ -104,9 +104,11 @@ def fit_filter(grid: tuple[int, int]) -> str:
     pixels. The same libswscale call as :class:`viewcomp.rt.media.video.VideoReader`, so the
     planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/test_mpv.py)."""
     w, h = grid
-    return (f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"
-            ":flags=bilinear:in_h_chr_pos=0:out_h_chr_pos=0"
-            f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]")  # fmt: skip
+    return (
+        f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"
+        ":flags=bilinear:in_h_chr_pos=0:out_h_chr_pos=0"
+        f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]"
+    )
 
 
 def mpv_args(shader: str, grid: tuple[int, int], guard: str | None = None) -> list[str]:
@@ -132,9 +134,19 @@ def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
     """
     h, w = shape
     colours = np.array(
-        [[0, 0, 0], [255, 255, 255], [255, 0, 0], [0, 255, 0], [0, 0, 255],
-         [0, 255, 255], [255, 0, 255], [255, 255, 0], [128, 128, 128]], np.uint8,
-    )  # fmt: skip
+        [
+            [0, 0, 0],
+            [255, 255, 255],
+            [255, 0, 0],
+            [0, 255, 0],
+            [0, 0, 255],
+            [0, 255, 255],
+            [255, 0, 255],
+            [255, 255, 0],
+            [128, 128, 128],
+        ],
+        np.uint8,
+    )
     yy, xx = np.mgrid[0:h, 0:w]
     return colours[(xx + 3 * yy) % len(colours)]
 
@@ -299,8 +311,18 @@ def export_mpv_shader(
     Raises:
         ExportError: an impossible combination, with the fix.
     """
-    req = _Request(method, angle, None if eye is None else tuple(float(v) for v in eye),
-                   audience, param, lam, tone_sample, tone, precision, source)  # fmt: skip
+    req = _Request(
+        method,
+        angle,
+        None if eye is None else tuple(float(v) for v in eye),
+        audience,
+        param,
+        lam,
+        tone_sample,
+        tone,
+        precision,
+        source,
+    )
     req, e = _check(cal, req)
     build = _build(cal, req, e)
     return _assemble(req, build)
@@ -343,9 +365,11 @@ def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
     if req.method not in ("pixel", "paper"):
         raise ExportError(f"method must be 'pixel' or 'paper', got {req.method!r}")
     if req.param and req.method != "pixel":
-        raise ExportError("the paper method's matrices and LUTs are computed on the CPU for each "
-                          "eye, so they cannot follow a shader parameter; fix: export it for a "
-                          "fixed --angle, or use --method pixel with --param")  # fmt: skip
+        raise ExportError(
+            "the paper method's matrices and LUTs are computed on the CPU for each "
+            "eye, so they cannot follow a shader parameter; fix: export it for a "
+            "fixed --angle, or use --method pixel with --param"
+        )
     if req.param and req.eye is not None:
         raise ExportError("--param makes the angle a parameter; it cannot be combined with --eye")
     if req.param and req.tone is not None:
@@ -355,13 +379,17 @@ def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
     if req.audience is not None and len(req.audience) == 1:
         req = replace(req, eye=tuple(float(v) for v in req.audience.eyes[0]), audience=None)
     if req.audience is not None and (req.param or req.method != "pixel"):
-        raise ExportError("an audience of several viewers is baked in for the pixel method; fix: "
-                          "drop --param, use --method pixel")  # fmt: skip
+        raise ExportError(
+            "an audience of several viewers is baked in for the pixel method; fix: "
+            "drop --param, use --method pixel"
+        )
     if req.angle is None and req.eye is None and req.audience is None:
         raise ExportError("give a viewing angle or an eye position")
     if req.precision == 8 and (req.param or req.method != "pixel"):
-        raise ExportError("--precision 8 stores the fixed-eye pixel method's rows; fix: use "
-                          "16 with --param or --method paper")  # fmt: skip
+        raise ExportError(
+            "--precision 8 stores the fixed-eye pixel method's rows; fix: use "
+            "16 with --param or --method paper"
+        )
     if req.audience is not None:
         return req, req.audience.centre
     e = cal.eye(angle=None if req.eye is not None else req.angle, eye=req.eye, error=ExportError)
@@ -375,8 +403,9 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     sample = full_range_sample() if req.tone_sample is None else thumbnail(req.tone_sample)
     view: View = req.audience if req.audience is not None else e
     p = comp(sample, view)
-    alpha, beta = (p.alpha, p.beta) if req.tone is None else (float(req.tone[0]),
-                                                               float(req.tone[1]))  # fmt: skip
+    alpha, beta = (
+        (p.alpha, p.beta) if req.tone is None else (float(req.tone[0]), float(req.tone[1]))
+    )
     model = p.model
     n_inv = int(model.inv_lut.shape[0])
     lut = _lut_image(model)
@@ -395,8 +424,15 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     return out
 
 
-def _build_pixel(cal: Calibration, req: _Request, out: _Build, comp: Compensation,
-                 model: RuntimeModel, sample: np.ndarray, view: View) -> None:  # fmt: skip
+def _build_pixel(
+    cal: Calibration,
+    req: _Request,
+    out: _Build,
+    comp: Compensation,
+    model: RuntimeModel,
+    sample: np.ndarray,
+    view: View,
+) -> None:
     """The pixel method's maps (``param``: the eye follows the angle) or its view cache for
     a fixed eye, with their ``#define`` values, into ``out``."""
     sq = inverse_position(model.inv_lo, model.inv_hi, int(model.inv_lut.shape[0]))
@@ -455,11 +491,14 @@ def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
     """The shader's text: a header with the mpv command line, the PARAM, the hook's
     directives and GLSL, the textures; and its :class:`MpvShaderInfo`."""
     (w, h), e, method, angle = b.grid, b.eye, req.method, req.angle
-    where = (f"angle {angle:g} deg" if req.eye is None else
-             "eye ({:.4f}, {:.4f}, {:.4f}) m".format(*e))  # fmt: skip
+    where = (
+        f"angle {angle:g} deg" if req.eye is None else "eye ({:.4f}, {:.4f}, {:.4f}) m".format(*e)
+    )
     if req.audience is not None:
-        where = f"an audience of {len(req.audience)} viewers around " + \
-            "({:.4f}, {:.4f}, {:.4f}) m".format(*e)  # fmt: skip
+        where = (
+            f"an audience of {len(req.audience)} viewers around "
+            + "({:.4f}, {:.4f}, {:.4f}) m".format(*e)
+        )
     if req.param:
         where = f"angle from the shader parameter angle (default {angle:g} deg)"
     header = [
@@ -474,8 +513,10 @@ def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
         "// (the --vf fits the video to the grid as `viewcomp render` does, bars included).",
     ]
     if req.param:
-        header.append("// Needs vo=gpu-next with a libplacebo that supports PARAM; set the "
-                      "angle with --glsl-shader-opts=angle=60.")  # fmt: skip
+        header.append(
+            "// Needs vo=gpu-next with a libplacebo that supports PARAM; set the "
+            "angle with --glsl-shader-opts=angle=60."
+        )
     parts = ["\n".join(header) + "\n\n"]
     if req.param:  # the PARAM's range: the limits of viewcomp.calib.world.eye
         parts.append(
@@ -496,6 +537,7 @@ def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
     text = "".join(parts)
     eye_t = None if req.param else (float(e[0]), float(e[1]), float(e[2]))
     shown_angle = None if req.eye is not None or req.audience is not None else angle
-    info = MpvShaderInfo(method, (w, h), shown_angle, eye_t, req.param,
-                         b.alpha, b.beta, req.precision, len(text))  # fmt: skip
+    info = MpvShaderInfo(
+        method, (w, h), shown_angle, eye_t, req.param, b.alpha, b.beta, req.precision, len(text)
+    )
     return text, info

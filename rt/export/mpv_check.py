@@ -78,9 +78,11 @@ def check_mpv(
         context: list[str] = []
         if headless or not os.environ.get("DISPLAY"):
             if not xvfb_available():
-                raise MpvCheckError("no X display (DISPLAY is not set) and no Xvfb to start "
-                                    "one; fix: run it on the kiosk's display, or install "
-                                    "xvfb")  # fmt: skip
+                raise MpvCheckError(
+                    "no X display (DISPLAY is not set) and no Xvfb to start "
+                    "one; fix: run it on the kiosk's display, or install "
+                    "xvfb"
+                )
             try:
                 stack.enter_context(Xvfb((320, 240)))
             except XvfbError as exc:

@@ -259,12 +259,15 @@ class Compensator(FrameIO, ShaderPasses, ViewCache):
             self.set_eye(*aud.eyes[0])
             return
         if self.method != "pixel":
-            raise ValueError(f"an audience of several viewers needs the pixel method, not "
-                             f"{self.method}")  # fmt: skip
+            raise ValueError(
+                f"an audience of several viewers needs the pixel method, not {self.method}"
+            )
         eye = np.asarray(aud.centre, np.float32)
         self.eye = eye
-        self.audience = Audience(aud.eyes.astype(np.float32).astype(np.float64),
-                                 aud.weights.astype(np.float32).astype(np.float64))  # fmt: skip
+        self.audience = Audience(
+            aud.eyes.astype(np.float32).astype(np.float64),
+            aud.weights.astype(np.float32).astype(np.float64),
+        )
 
     def set_angle(self, deg: float, distance: float, height: float) -> None:
         """Eye from a viewing angle: E = (d cos t, h, d sin t); degrees and metres."""

@@ -56,8 +56,10 @@ class FrameIO:
         """Upload an RGB frame already on the GPU: a pixel buffer of this context holding
         (H, W, 3) uint8 levels in :meth:`upload`'s order (a copy within the driver)."""
         if buffer.size < self.width * self.height * 3:
-            raise ValueError(f"the buffer holds {buffer.size} bytes, a frame needs "
-                             f"{self.width * self.height * 3}")  # fmt: skip
+            raise ValueError(
+                f"the buffer holds {buffer.size} bytes, a frame needs "
+                f"{self.width * self.height * 3}"
+            )
         self._rgb.write(buffer, alignment=1)
         self._input = 0
 

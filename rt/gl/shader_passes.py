@@ -102,8 +102,15 @@ class ShaderPasses:
             out[0, 3] = self.alpha
             out[1, 0] = self.beta
         elif self.method == "paper":
-            out[:3] = paper_rows(self._Ww, self._Wc_inv, self._inv_lo, self._inv_hi,
-                                 self._n_inv, self.alpha, self.beta)  # fmt: skip
+            out[:3] = paper_rows(
+                self._Ww,
+                self._Wc_inv,
+                self._inv_lo,
+                self._inv_hi,
+                self._n_inv,
+                self.alpha,
+                self.beta,
+            )
         return out.tobytes()
 
     def _audience_values(self) -> bytes:

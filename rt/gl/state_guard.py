@@ -205,6 +205,16 @@ class RawGL:
         dx, dy, dw, dh = dst_rect
         self._bind(_GL_READ_FRAMEBUFFER, src.glo)
         self._bind(_GL_DRAW_FRAMEBUFFER, dst.glo)
-        self._blit(sx, sy, sx + sw, sy + sh, dx, dy, dx + dw, dy + dh, _GL_COLOR_BUFFER_BIT,
-                   _GL_LINEAR if linear else _GL_NEAREST)  # fmt: skip
+        self._blit(
+            sx,
+            sy,
+            sx + sw,
+            sy + sh,
+            dx,
+            dy,
+            dx + dw,
+            dy + dh,
+            _GL_COLOR_BUFFER_BIT,
+            _GL_LINEAR if linear else _GL_NEAREST,
+        )
         dst.use()  # moderngl's own binding again

@@ -132,8 +132,9 @@ class ViewCache:
         self._render(build, flip_y=0)
         fbo.scissor = None
         # Into the buffer texture the draws read (a copy within the driver, no round trip).
-        fbo.read_into(view.buffer, viewport=band, components=4, dtype="f4",
-                      write_offset=row_bytes * by * r0)  # fmt: skip
+        fbo.read_into(
+            view.buffer, viewport=band, components=4, dtype="f4", write_offset=row_bytes * by * r0
+        )
         self._band_row = r1
         if r1 < self.height:
             return False

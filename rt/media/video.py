@@ -244,8 +244,12 @@ class VideoReader:
             skip = self.start_at - 0.5 / float(self.info.rate)  # frames before it are skipped
             if self.start_at > 0.0:
                 vs = self.video_stream
-                self.container.seek(int((t0 + self.start_at) / vs.time_base), stream=vs,
-                                    backward=True, any_frame=False)  # fmt: skip
+                self.container.seek(
+                    int((t0 + self.start_at) / vs.time_base),
+                    stream=vs,
+                    backward=True,
+                    any_frame=False,
+                )
             for packet in self.container.demux(streams):
                 if self._stop.is_set():
                     return

@@ -218,8 +218,10 @@ def _show_command(key: str, args: Sequence[Any], name: str) -> ShowCommand:
 
 
 _WORDS = {k for k, _ in SHOW_ADDRESSES.values()}
-_EXPECTED_LINE = ("`angle DEG`, `norm 0..1`, `eye X Y Z`, `eyes X1 Y1 Z1 ...`, `pause`, "
-                  "`resume`, `seek S`, `next`, `previous`, `blackout 0|1` or `status`")  # fmt: skip
+_EXPECTED_LINE = (
+    "`angle DEG`, `norm 0..1`, `eye X Y Z`, `eyes X1 Y1 Z1 ...`, `pause`, "
+    "`resume`, `seek S`, `next`, `previous`, `blackout 0|1` or `status`"
+)
 
 
 # ----------------------------------------------------------------------- parsers

@@ -127,8 +127,11 @@ def fuzz_player(
         host, port = player.osc_address
         proc = subprocess.run(
             [sys.executable, "-c", SENDER, host, str(port), str(w), str(n)],
-            pass_fds=(w,), capture_output=True, text=True, timeout=600,
-        )  # fmt: skip
+            pass_fds=(w,),
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         result["sender"] = proc
         if proc.returncode == 0:
             want = json.loads(proc.stdout)["count"]
@@ -137,9 +140,11 @@ def fuzz_player(
             while time.monotonic() - start < settle_limit_s:
                 got = player.hub.snapshot()
                 if all(
-                    src in got and got[src].applied == want[src][0]
-                    and got[src].rejected == want[src][1] for src in want
-                ):  # fmt: skip
+                    src in got
+                    and got[src].applied == want[src][0]
+                    and got[src].rejected == want[src][1]
+                    for src in want
+                ):
                     result["settle_s"] = time.monotonic() - start
                     break
                 time.sleep(0.02)

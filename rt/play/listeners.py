@@ -66,8 +66,12 @@ class _RateLimit:
         self.hidden[source] = self.hidden.get(source, 0) + 1
         now = time.monotonic()
         if now - self.last.get(source, 0.0) >= self.period:
-            log.warning("%s: %d more malformed messages dropped (last: %s)", source,
-                        self.hidden[source], message)  # fmt: skip
+            log.warning(
+                "%s: %d more malformed messages dropped (last: %s)",
+                source,
+                self.hidden[source],
+                message,
+            )
             self.hidden[source] = 0
             self.last[source] = now
 
@@ -142,8 +146,9 @@ def parse_host_port(text: str, default_host: str = "127.0.0.1") -> tuple[str, in
     try:
         port = int(port_s)
     except ValueError:
-        raise InputError(f"an OSC address is HOST:PORT, e.g. 127.0.0.1:9000; got {text!r}")\
-            from None  # fmt: skip
+        raise InputError(
+            f"an OSC address is HOST:PORT, e.g. 127.0.0.1:9000; got {text!r}"
+        ) from None
     if not 0 <= port <= 65535:
         raise InputError(f"a UDP port is 0..65535, got {port}")
     return host, port
@@ -169,8 +174,10 @@ class OscListener:
             self.sock.bind((host, port))
         except OSError as exc:
             self.sock.close()
-            raise InputError(f"cannot listen for OSC on {host}:{port}: {exc}; fix: use a free "
-                             "port, e.g. --osc 127.0.0.1:9000") from exc  # fmt: skip
+            raise InputError(
+                f"cannot listen for OSC on {host}:{port}: {exc}; fix: use a free "
+                "port, e.g. --osc 127.0.0.1:9000"
+            ) from exc
         self.sock.settimeout(0.1)
         self.address: tuple[str, int] = self.sock.getsockname()[:2]
         self.packets = 0

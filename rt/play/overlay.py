@@ -27,8 +27,16 @@ class Overlay:
         w, h = self.SIZE
         img = np.zeros((h, w, 3), np.uint8)
         for i, line in enumerate(lines):
-            cv2.putText(img, line, (8, 20 + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                        (255, 255, 255), 1, cv2.LINE_AA)  # fmt: skip
+            cv2.putText(
+                img,
+                line,
+                (8, 20 + 22 * i),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.5,
+                (255, 255, 255),
+                1,
+                cv2.LINE_AA,
+            )
         self.tex.write(np.ascontiguousarray(img[::-1]))  # GL rows go bottom-up
         self.text = lines
 

@@ -324,8 +324,12 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
                 self._overlay.updated = t0
             ow, oh = Overlay.SIZE
             fw, fh = self._fb_size
-            renderer.blit(self._overlay.fbo, (0, 0, ow, oh), self._ctx.screen,
-                          (8, max(fh - oh - 8, 0), min(ow, fw), min(oh, fh)))  # fmt: skip
+            renderer.blit(
+                self._overlay.fbo,
+                (0, 0, ow, oh),
+                self._ctx.screen,
+                (8, max(fh - oh - 8, 0), min(ow, fw), min(oh, fh)),
+            )
         renderer.finish()
         cost = time.monotonic() - t0
         self._render_est = 0.8 * self._render_est + 0.2 * cost
@@ -335,8 +339,10 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
         if redraw and planes is self._last_planes and self._shown is not None:
             idx, path, still = self._shown.index, self._shown.path, self._shown.still
         if self.on_frame is not None:
-            self.on_frame(self, PresentedFrame(self.stats.presented, idx, path, planes.time,
-                                               due, record, planes))  # fmt: skip
+            self.on_frame(
+                self,
+                PresentedFrame(self.stats.presented, idx, path, planes.time, due, record, planes),
+            )
         while True:
             wait = due - time.monotonic()
             if wait <= 0:

@@ -66,13 +66,17 @@ class PlayerStats:
         r = np.asarray(self.render_ms) if self.render_ms else np.zeros(1)
         audio = "silent"
         if self.audio is not None:
-            audio = (f"audio {self.audio_device}: {self.audio.written:.1f} s played, "
-                     f"{self.audio.dropped:.2f} s dropped late")  # fmt: skip
+            audio = (
+                f"audio {self.audio_device}: {self.audio.written:.1f} s played, "
+                f"{self.audio.dropped:.2f} s dropped late"
+            )
         parts = []
         if self.presented or not self.stills:
             rate = "" if self.stills else f", {self.fps:.1f} frames/s"
-            parts.append(f"{self.presented} video frames presented, {self.dropped} dropped "
-                         f"({self.drop_percent:.1f} %){rate}")  # fmt: skip
+            parts.append(
+                f"{self.presented} video frames presented, {self.dropped} dropped "
+                f"({self.drop_percent:.1f} %){rate}"
+            )
         if self.stills:
             parts.append(f"{self.stills} still image{'s' if self.stills != 1 else ''} shown")
         return (
@@ -120,9 +124,11 @@ class PlayerStatus:
     def line(self) -> str:
         """One line for stdout: ``status file=... position=12.345 paused=0 ...``."""
         x, y, z = self.eye
-        return (f"status file={self.file} position={self.position:.3f} paused={int(self.paused)} "
-                f"angle={self.angle:.2f} eye={x:.4f},{y:.4f},{z:.4f} fps={self.fps:.1f} "
-                f"dropped={self.dropped} blackout={int(self.blackout)}")  # fmt: skip
+        return (
+            f"status file={self.file} position={self.position:.3f} paused={int(self.paused)} "
+            f"angle={self.angle:.2f} eye={x:.4f},{y:.4f},{z:.4f} fps={self.fps:.1f} "
+            f"dropped={self.dropped} blackout={int(self.blackout)}"
+        )
 
 
 @dataclass(frozen=True)
@@ -182,20 +188,28 @@ class StatusReport:
         else:
             eye, file, position = shown.eye, str(shown.path), shown.time
         return PlayerStatus(
-            file=file, position=position, paused=self._paused,
-            angle=eye_to_polar(np.asarray(eye))[0], eye=eye,  # type: ignore[arg-type]
-            fps=self._fps_now, dropped=self.stats.dropped,
+            file=file,
+            position=position,
+            paused=self._paused,
+            angle=eye_to_polar(np.asarray(eye))[0],
+            eye=eye,  # type: ignore[arg-type]
+            fps=self._fps_now,
+            dropped=self.stats.dropped,
             blackout=self._blackout if shown is None else shown.blackout,
-        )  # fmt: skip
+        )
 
     def _dropped(self, now: float, due: float) -> None:
         self.stats.dropped += 1
         self._drops_unlogged += 1
         if now - self._drop_logged_at >= DROP_LOG_PERIOD:
-            log.warning("dropped %d late frame%s (%s at %.2f s; %d in all)",
-                        self._drops_unlogged, "s" if self._drops_unlogged > 1 else "",
-                        self._file[1].name, due - (self._origin or 0.0),
-                        self.stats.dropped)  # fmt: skip
+            log.warning(
+                "dropped %d late frame%s (%s at %.2f s; %d in all)",
+                self._drops_unlogged,
+                "s" if self._drops_unlogged > 1 else "",
+                self._file[1].name,
+                due - (self._origin or 0.0),
+                self.stats.dropped,
+            )
             self._drops_unlogged = 0
             self._drop_logged_at = now
 

@@ -49,10 +49,15 @@ def expand_playlist(paths: Sequence[str | os.PathLike[str]]) -> list[Path]:
         p = Path(raw)
         if p.is_dir():
             found = sorted(
-                (q for q in p.iterdir() if q.is_file() and not q.name.startswith(".")
-                 and q.suffix.lower() in VIDEO_SUFFIXES | IMAGE_SUFFIXES),
+                (
+                    q
+                    for q in p.iterdir()
+                    if q.is_file()
+                    and not q.name.startswith(".")
+                    and q.suffix.lower() in VIDEO_SUFFIXES | IMAGE_SUFFIXES
+                ),
                 key=lambda q: q.name.lower(),
-            )  # fmt: skip
+            )
             if not found:
                 raise PlayerError(
                     f"folder {p} has no video or image files "
@@ -148,8 +153,12 @@ class PlaylistPump:
             return
         added = [p.name for p in new if p not in self.playlist]
         if added:
-            log.info("playlist: %d new file%s: %s", len(added), "s" if len(added) > 1 else "",
-                     ", ".join(added[:5]) + (" ..." if len(added) > 5 else ""))  # fmt: skip
+            log.info(
+                "playlist: %d new file%s: %s",
+                len(added),
+                "s" if len(added) > 1 else "",
+                ", ".join(added[:5]) + (" ..." if len(added) > 5 else ""),
+            )
         self.playlist = new
 
     def _pump(self) -> None:
@@ -178,16 +187,26 @@ class PlaylistPump:
                         continue
                 path = playlist[index]
                 try:
-                    reader = VideoReader(path, fit=grid, audio=audio_mode,  # type: ignore[arg-type]
-                                         queue_size=self.options.queue_size,
-                                         start_at=start)  # fmt: skip
+                    reader = VideoReader(
+                        path,
+                        fit=grid,
+                        audio=audio_mode,  # type: ignore[arg-type]
+                        queue_size=self.options.queue_size,
+                        start_at=start,
+                    )
                 except VideoError as exc:
                     log.error("skipping: %s", exc)
                     bad += 1
                     if bad >= len(playlist):
-                        self._put(_Failure(VideoError("none of the files in the playlist "
-                                                      "could be played (see the errors "
-                                                      "above)")))  # fmt: skip
+                        self._put(
+                            _Failure(
+                                VideoError(
+                                    "none of the files in the playlist "
+                                    "could be played (see the errors "
+                                    "above)"
+                                )
+                            )
+                        )
                         return
                     index, start = index + 1, 0.0
                     continue
@@ -215,15 +234,15 @@ class PlaylistPump:
                 if self._put(_Failure(exc)):
                     return
 
-    def _forward(self, reader: VideoReader, path: Path, seq: int, gen: int, index: int,
-                 jumped: bool) -> bool:  # fmt: skip
+    def _forward(
+        self, reader: VideoReader, path: Path, seq: int, gen: int, index: int, jumped: bool
+    ) -> bool:
         """Queue the file's start, then its frames and audio until it ends, a jump is pending
         or the pump stops; False when the pump must return (stopping, or audio gone)."""
         with reader:
             start0 = reader.info.start
             still = is_still(path, reader.info.frames)
-            if self._put(_FileStart(seq, gen, index, path, float(reader.info.rate),
-                                    still, jumped)):  # fmt: skip
+            if self._put(_FileStart(seq, gen, index, path, float(reader.info.rate), still, jumped)):
                 try:
                     for item in reader:
                         if self._stop.is_set():
@@ -234,8 +253,11 @@ class PlaylistPump:
                             if not self._put(item):
                                 break
                         elif self._audio is not None and item.frame is not None:
-                            t = (float(item.frame.time) - start0
-                                 if item.frame.time is not None else 0.0)  # fmt: skip
+                            t = (
+                                float(item.frame.time) - start0
+                                if item.frame.time is not None
+                                else 0.0
+                            )
                             if not self._audio.feed(seq, t, item.frame):
                                 return False
                 except VideoError as exc:

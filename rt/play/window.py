@@ -136,8 +136,10 @@ class WindowLifecycle:
             monitors = glfw.get_monitors() or []
             if not 0 <= o.monitor < len(monitors):
                 listing = "\n".join(f"  {m}" for m in self._glfw.monitors()) or "  (none)"
-                raise PlayerError(f"no monitor {o.monitor}; the monitors are:\n{listing}\n"
-                                  "fix: --monitor N with one of these, or --windowed")  # fmt: skip
+                raise PlayerError(
+                    f"no monitor {o.monitor}; the monitors are:\n{listing}\n"
+                    "fix: --monitor N with one of these, or --windowed"
+                )
             monitor = monitors[o.monitor]
             mode = glfw.get_video_mode(monitor)
             w, h = o.size or (int(mode.size.width), int(mode.size.height))
@@ -148,9 +150,11 @@ class WindowLifecycle:
         glfw.window_hint(glfw.RESIZABLE, o.windowed)
         win = glfw.create_window(int(w), int(h), o.title, monitor, None)
         if not win:
-            raise PlayerError(f"cannot create a {w}x{h} OpenGL 3.3 window "
-                              f"({self._glfw.last_error}); fix: install the Debian packages "
-                              "libgl1 libgl1-mesa-dri (Mesa llvmpipe is enough)")  # fmt: skip
+            raise PlayerError(
+                f"cannot create a {w}x{h} OpenGL 3.3 window "
+                f"({self._glfw.last_error}); fix: install the Debian packages "
+                "libgl1 libgl1-mesa-dri (Mesa llvmpipe is enough)"
+            )
         self._win = win
         glfw.make_context_current(win)
         glfw.swap_interval(1 if o.vsync else 0)
@@ -158,12 +162,21 @@ class WindowLifecycle:
             glfw.set_input_mode(win, glfw.CURSOR, glfw.CURSOR_HIDDEN)
         self._ctx = moderngl.create_context(require=330)
         self.renderer = LiveRenderer(
-            self.cal, self._ctx, method=o.method, lam=o.lam, tone_tau=o.tone_tau,
-            eye_tau=o.eye_tau, angle=o.angle, eye=o.eye, audience=o.audience, async_tone=True,
+            self.cal,
+            self._ctx,
+            method=o.method,
+            lam=o.lam,
+            tone_tau=o.tone_tau,
+            eye_tau=o.eye_tau,
+            angle=o.angle,
+            eye=o.eye,
+            audience=o.audience,
+            async_tone=True,
             tone_hz=o.tone_hz,
-            tone_side=o.tone_side, scale=o.scale,  # type: ignore[arg-type]
+            tone_side=o.tone_side,
+            scale=o.scale,  # type: ignore[arg-type]
             proc_address=lambda name: int(glfw.get_proc_address(name) or 0),
-        )  # fmt: skip
+        )
         self.renderer.eye_state.norm_range = o.norm_range
         self.renderer.warm_up(planes=True, present=self._viewport_needs_scaling(w, h))
         self._overlay = Overlay(self._ctx)
@@ -171,9 +184,13 @@ class WindowLifecycle:
         glfw.set_mouse_button_callback(win, self._on_mouse_button)
         glfw.set_cursor_pos_callback(win, self._on_cursor)
         self._update_viewport()
-        log.info("window %dx%d on %s, grid %dx%d, viewport %s", *self._fb_size,
-                 "a window" if monitor is None else f"monitor {o.monitor}",
-                 *self.renderer.grid, self._viewport)  # fmt: skip
+        log.info(
+            "window %dx%d on %s, grid %dx%d, viewport %s",
+            *self._fb_size,
+            "a window" if monitor is None else f"monitor {o.monitor}",
+            *self.renderer.grid,
+            self._viewport,
+        )
 
     def _viewport_needs_scaling(self, w: int, h: int) -> bool:
         assert self.renderer is not None
@@ -205,8 +222,7 @@ class WindowLifecycle:
             if out is not None:
                 self._audio = AudioPlayer(out)
                 self.stats.audio_device = o.audio_device
-        self._pump_thread = threading.Thread(target=self._pump, name="viewcomp-pump",
-                                             daemon=True)  # fmt: skip
+        self._pump_thread = threading.Thread(target=self._pump, name="viewcomp-pump", daemon=True)
         self._pump_thread.start()
 
     def _shutdown(self) -> None:

@@ -301,8 +301,21 @@ def render_file(
         _write_png(dst, out)
         seconds = time.perf_counter() - t_start
         return RenderStats("image", 1, seconds, seconds, t_params)
-    return _render_video(comp, model, src, dst, eye_track, backend, identity, crf, codec,
-                         preset, progress, ctx, t_start)  # fmt: skip
+    return _render_video(
+        comp,
+        model,
+        src,
+        dst,
+        eye_track,
+        backend,
+        identity,
+        crf,
+        codec,
+        preset,
+        progress,
+        ctx,
+        t_start,
+    )
 
 
 def _render_video(
@@ -327,13 +340,27 @@ def _render_video(
         info = reader.info
         eng = _Engine(backend, model, identity, ctx)
         try:
-            writer = VideoWriter(dst, w, h, info.rate, codec=codec, crf=crf,
-                                 colorspace=info.colorspace, audio=reader.audio_stream,
-                                 audio_start=info.start, preset=preset)  # fmt: skip
+            writer = VideoWriter(
+                dst,
+                w,
+                h,
+                info.rate,
+                codec=codec,
+                crf=crf,
+                colorspace=info.colorspace,
+                audio=reader.audio_stream,
+                audio_start=info.start,
+                preset=preset,
+            )
             with EncodeThread(writer, (h, w, 3)) as enc:
                 reader.audio_mode = writer.audio_mode
-                bar = tqdm(total=info.frames, unit="frame", disable=not progress,
-                           desc=src.name, dynamic_ncols=True)  # fmt: skip
+                bar = tqdm(
+                    total=info.frames,
+                    unit="frame",
+                    disable=not progress,
+                    desc=src.name,
+                    dynamic_ncols=True,
+                )
                 try:
                     _video_loop(reader, comp, eng, enc, eye_track, identity, bar, clock, t_start)
                 finally:

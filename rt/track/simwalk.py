@@ -129,8 +129,9 @@ def render_frame(
         u, v = b[0] + 0.5 * b[2], b[1] + EYE_ROW * b[3]  # where the eyes' midpoint goes
         src = cv2.GaussianBlur(face, (0, 0), sigmaX=max(0.5 / s - 0.4, 0.01)) if s < 1 else face
         m = np.array([[s, 0.0, u - s * ASTRONAUT_EYES[0]], [0.0, s, v - s * ASTRONAUT_EYES[1]]])
-        warped = cv2.warpAffine(src, m, (w, h), flags=cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+        warped = cv2.warpAffine(
+            src, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+        )
         a = warped[:, :, 3:4]
         out = out * (1.0 - a) + warped[:, :, :3] * a
     out = out + rng.normal(0.0, noise, out.shape).astype(np.float32)

@@ -111,8 +111,11 @@ class FrameSource:
             cv2.utils.logging.setLogLevel(level)
         if not cap.isOpened():
             cap.release()
-            kind = "no camera with this index can be opened" if isinstance(what, int) else (
-                "not a video OpenCV can open")  # fmt: skip
+            kind = (
+                "no camera with this index can be opened"
+                if isinstance(what, int)
+                else ("not a video OpenCV can open")
+            )
             raise SourceError(f"{what}: {kind}; {_hint()}")
         if isinstance(what, int):
             # one buffered frame: a reader that is busy gets the newest frame, not a queue

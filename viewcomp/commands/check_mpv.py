@@ -17,11 +17,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         "uncompensated with exit status 0; this exits with status 2 and mpv's error instead.",
     )
     p.add_argument("shader", help="the shader file from `viewcomp export-mpv`")
-    p.add_argument("--vo", choices=["gpu", "gpu-next"], default="gpu",
-                   help="mpv's video output to check with (default gpu)")  # fmt: skip
-    p.add_argument("--headless", action="store_true",
-                   help="check on a private Xvfb with software OpenGL even when there is a "
-                   "display (the default without one)")  # fmt: skip
+    p.add_argument(
+        "--vo",
+        choices=["gpu", "gpu-next"],
+        default="gpu",
+        help="mpv's video output to check with (default gpu)",
+    )
+    p.add_argument(
+        "--headless",
+        action="store_true",
+        help="check on a private Xvfb with software OpenGL even when there is a "
+        "display (the default without one)",
+    )
     p.set_defaults(run=run)
 
 
@@ -37,10 +44,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"{result.version} (vo={args.vo}) runs {args.shader}")
         return 0
     said = "; ".join(result.errors[:2]) or f"exit status {result.status}"
-    fix = ("export it without --param for this mpv (or use one whose libplacebo reads "
-           "//!PARAM)" if "PARAM" in said else "export it again with this viewcomp (an "
-           "edited or cut-short file is rejected), or check mpv's OpenGL driver")  # fmt: skip
-    print(f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) rejects {args.shader} "
-          f"and would play the video uncompensated: {said}; fix: {fix}; and play with "
-          "export-mpv's --guard script, which stops mpv instead", file=sys.stderr)  # fmt: skip
+    fix = (
+        "export it without --param for this mpv (or use one whose libplacebo reads //!PARAM)"
+        if "PARAM" in said
+        else "export it again with this viewcomp (an "
+        "edited or cut-short file is rejected), or check mpv's OpenGL driver"
+    )
+    print(
+        f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) rejects {args.shader} "
+        f"and would play the video uncompensated: {said}; fix: {fix}; and play with "
+        "export-mpv's --guard script, which stops mpv instead",
+        file=sys.stderr,
+    )
     return 2

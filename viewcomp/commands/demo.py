@@ -77,23 +77,31 @@ def run(args: argparse.Namespace) -> int:
                 tiles[f"{m} method"] = sim.observe(screen, img, eye)
             de = {k: delta_e2000(v, ideal) for k, v in tiles.items()}
             table.append((iname, angle, de))
-            small = [cv2.resize(v, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-                     for v in tiles.values()]  # fmt: skip
-            heads = [[k, f"seen at {angle} deg" if k.startswith("white") else f"dE {de[k]:.1f}"]
-                     for k in tiles]  # fmt: skip
+            small = [
+                cv2.resize(v, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+                for v in tiles.values()
+            ]
+            heads = [
+                [k, f"seen at {angle} deg" if k.startswith("white") else f"dE {de[k]:.1f}"]
+                for k in tiles
+            ]
             rows.append(labelled_row(small, heads))
         log(f"compensated {iname} for angles {', '.join(map(str, DEMO_ANGLES))}")
     body = np.concatenate(rows, axis=0)
-    title = (f"what a viewer sees on the simulated glossy {args.screen} screen at each angle "
-             "(dE: mean CIEDE2000 vs the white screen, lower is better)")  # fmt: skip
+    title = (
+        f"what a viewer sees on the simulated glossy {args.screen} screen at each angle "
+        "(dE: mean CIEDE2000 vs the white screen, lower is better)"
+    )
     grid = np.concatenate([band(body.shape[1], [title]), body], axis=0)
     picture = out / "demo.png"
     write_png(picture, grid)
     print("\nmean CIEDE2000 against the white screen (lower is better):")
     print(f"{'image':>10} {'angle':>5} {'uncompensated':>14} {'paper':>7} {'per-pixel':>9}")
     for iname, angle, de in table:
-        print(f"{iname:>10} {angle:>5} {de['uncompensated']:>14.2f} {de['paper method']:>7.2f} "
-              f"{de['pixel method']:>9.2f}")  # fmt: skip
+        print(
+            f"{iname:>10} {angle:>5} {de['uncompensated']:>14.2f} {de['paper method']:>7.2f} "
+            f"{de['pixel method']:>9.2f}"
+        )
     print(f"\nside-by-side picture (what a viewer sees at each angle): {picture.resolve()}")
     if not args.no_video:
         _video(out, cal, sim, screen, images, log)

@@ -26,10 +26,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_eye_arguments(p, required=True, track=True, audience=True)
     add_tone_arguments(p)
-    p.add_argument("--backend", choices=["gl", "cpu"], default="gl",
-                   help="gl: the GLSL shader (default); cpu: the numpy reference")  # fmt: skip
-    p.add_argument("--identity", action="store_true",
-                   help="run the same pipeline with compensation off (A/B, timing)")  # fmt: skip
+    p.add_argument(
+        "--backend",
+        choices=["gl", "cpu"],
+        default="gl",
+        help="gl: the GLSL shader (default); cpu: the numpy reference",
+    )
+    p.add_argument(
+        "--identity",
+        action="store_true",
+        help="run the same pipeline with compensation off (A/B, timing)",
+    )
     p.add_argument("--crf", type=finite, default=18, help="video quality (x264 CRF, default 18)")
     p.add_argument("--codec", default="libx264", help="video codec (default libx264)")
     p.add_argument("--preset", default=None, help="encoder preset, e.g. veryfast (x264)")
