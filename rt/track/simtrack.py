@@ -69,8 +69,8 @@ def tracked_walk(
     times, truth = walk(seconds, fps)
     frames = _Frames(device, truth, seed)
     pipeline = Pipeline(
-        ArraySource(frames, fps, "<simulated walk>"),
-        device,  # type: ignore[arg-type]
+        ArraySource(frames, fps, "<simulated walk>"),  # type: ignore[arg-type]  # list-like
+        device,
         options or TrackOptions(),
     )
     tracked = np.empty_like(truth)

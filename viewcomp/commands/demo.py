@@ -163,7 +163,7 @@ def write_pan_clip(path: Path, images: list, seconds: float, rate: int) -> None:
     span = strip.shape[1] - w
     frames = [strip[:, round(span * i / max(n - 1, 1)) :][:, :w] for i in range(n)]
     from viewcomp.calib.io.atomic import atomic_path
-    from viewcomp.rt.testing import write_clip
+    from viewcomp.rt.media.sample_clip import write_clip
 
     with atomic_path(path) as tmp:
         write_clip(str(tmp), frames, rate, options={"preset": "veryfast", "crf": "18"})
