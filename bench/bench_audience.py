@@ -19,21 +19,26 @@ And the per-round ratios held_audience / held_eye (median, min, max). Run::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
 import os
 import statistics
-import sys
 import time
 
 import numpy as np
 
+from tests.support.synthetic import smooth_frame, synthetic_model
 from viewcomp.calib.world.audience import zone
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.compensator import Compensator
 from viewcomp.rt.gl.context import create_context, finish
-from viewcomp.rt.testing import smooth_frame, synthetic_model
 
 D, HT = 0.5, 0.035
 

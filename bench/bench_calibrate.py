@@ -23,16 +23,20 @@ the repository root::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
 import os
 import statistics
 import subprocess
-import sys
 import time
 from itertools import pairwise
-from pathlib import Path
 from typing import Any
 
 DEFAULT_SIZES = "640x320,1920x1080,3840x2160"
@@ -84,10 +88,10 @@ def startup_child(bundle: str) -> None:
     """The measured start-up, in this (fresh) process: prints one JSON line of stage ms."""
     t = {"start": time.perf_counter()}
 
+    from tests.support.synthetic import smooth_frame
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.rt.gl.context import create_context
     from viewcomp.rt.play.embed import LiveRenderer
-    from viewcomp.rt.testing import smooth_frame
 
     t["import"] = time.perf_counter()
     cpu_import = time.process_time()

@@ -102,7 +102,7 @@ def fit_filter(grid: tuple[int, int]) -> str:
     render``/``play`` do: scaled with aspect kept to even sizes (bilinear, chroma sited left
     as MPEG-2/H.264 put it, which is what PyAV's reformat assumes), centred on black, square
     pixels. The same libswscale call as :class:`viewcomp.rt.media.video.VideoReader`, so the
-    planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/test_mpv.py)."""
+    planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/rt/export/test_mpv.py)."""
     w, h = grid
     return (
         f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"

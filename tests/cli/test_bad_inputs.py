@@ -39,7 +39,7 @@ GB = 3_900_000_000  # a declared size in the GBs that still fits a plain (not zi
 @pytest.fixture(scope="module")
 def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """caps/ (a capture set), cal.vcb (its bundle), photo.png, clip.mp4, track.csv."""
-    from viewcomp.rt.testing import write_clip
+    from tests.support.synthetic import write_clip
 
     d = tmp_path_factory.mktemp("world")
     assert main(["simulate", str(d / "caps"), "--size", SIZE, "--screen", "red"]) == 0
@@ -789,7 +789,7 @@ DISK_CASES = {
 @pytest.fixture(scope="module")
 def long_clip(world: Path) -> Path:
     """A clip whose compensated output does not fit in a 64 KiB tmpfs."""
-    from viewcomp.rt.testing import write_clip
+    from tests.support.synthetic import write_clip
 
     rng = np.random.default_rng(1)
     frames = [rng.integers(0, 255, (48, 96, 3), dtype=np.uint8) for _ in range(40)]

@@ -19,7 +19,7 @@ import pytest
 
 from viewcomp.cli import build_parser
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SOURCE_DIRS = ("calib", "rt", "shaders", "viewcomp", "examples", "bench", "scripts")
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 

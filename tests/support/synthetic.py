@@ -3,7 +3,7 @@
 :class:`SyntheticCompensation` stands in for ``viewcomp.calib.comp.compensation.Compensation``
 (the duck-typed ``comp`` of :func:`viewcomp.rt.render.pipeline.render_file`) on a synthetic model
 of any size; :func:`make_compensation` gives a real one from a small simulated calibration
-(``viewcomp.calib.sim.testing.small_calibration``).
+(``tests.support.calibrations.small_calibration``).
 
 The geometry is a flat screen z = 0 lit by a projector at (0, -0.03, 0.5) looking at the
 origin (vertical field of view 20 degrees); the calibration camera is at (0, 0.035, 0.5).
@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from tests.support.calibrations import small_calibration
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.model.lobe import LOBE_N
 from viewcomp.calib.model.runtime import Method, RuntimeModel
-from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.calib.world.geometry import meet_screen
 from viewcomp.rt.media.sample_clip import write_clip
 
@@ -271,6 +271,6 @@ def make_compensation(
     method: str = "pixel", width: int = 64, height: int = 32, tau: float | None = None
 ) -> Compensation:
     """A real ``Compensation`` of ``method`` on a simulated glossy magenta screen
-    (``viewcomp.calib.sim.testing.small_calibration``) at width x height, smoothed over
+    (``tests.support.calibrations.small_calibration``) at width x height, smoothed over
     ``tau`` seconds."""
     return Compensation(small_calibration(w=width, h=height), method, tau=tau)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_calibration
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.eval.evaluate import World, sweep
 from viewcomp.calib.eval.preview import BAND, encode8, predict
@@ -23,7 +24,6 @@ from viewcomp.calib.model.reference import (
     target_to_projector,
     white_response,
 )
-from viewcomp.calib.sim.testing import small_calibration
 
 
 @pytest.fixture(scope="module")
@@ -107,7 +107,7 @@ def magenta(tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Path]:
 
 
 def test_cli_preview_image_and_video(tmp_path: Path, magenta: tuple[Any, Path]) -> None:
-    from viewcomp.rt.testing import make_test_video
+    from tests.support.synthetic import make_test_video
 
     _, bundle = magenta
     photo = tmp_path / "photo.png"

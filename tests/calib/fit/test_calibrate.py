@@ -5,6 +5,7 @@ import shutil
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_calibration, small_simulator
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.eval.metrics import sse
@@ -16,7 +17,6 @@ from viewcomp.calib.io.imageio import read_image, write_png
 from viewcomp.calib.model.reference import lobe_change, target_to_projector
 from viewcomp.calib.sim.simulate import capture_patterns, simulate_capture_set
 from viewcomp.calib.sim.simulator import make_screen, white_screen
-from viewcomp.calib.sim.testing import small_calibration, small_simulator
 from viewcomp.calib.world.eye import eye_from_angle
 
 W, H = 128, 64

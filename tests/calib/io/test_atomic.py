@@ -174,8 +174,8 @@ def test_sigterm_mid_render_leaves_nothing_behind(tmp_path: Path) -> None:
     import sys
     import time
 
+    from tests.support.synthetic import smooth_frame, write_clip
     from viewcomp.cli import main
-    from viewcomp.rt.testing import smooth_frame, write_clip
 
     assert main(["simulate", str(tmp_path / "caps"), "--size", "64x32"]) == 0
     assert main(["calibrate", str(tmp_path / "caps"), "-o", str(tmp_path / "m.vcb")]) == 0

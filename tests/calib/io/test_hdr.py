@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_simulator
 from viewcomp.calib.fit.calibrate import calibrate
 from viewcomp.calib.hw.bracket import Bracket, exposure_value, relative_exposure
 from viewcomp.calib.hw.devices import DeviceError, OpenCVCamera
@@ -18,7 +19,6 @@ from viewcomp.calib.io.captureset import read_capture_set
 from viewcomp.calib.io.hdr import CLIP_CODE, DEFAULT_STOPS, merge_exposures
 from viewcomp.calib.io.patterns import table1_patterns
 from viewcomp.calib.sim.simulator import CameraPhysics, SimulatorError, white_screen
-from viewcomp.calib.sim.testing import small_simulator
 from viewcomp.calib.world.response import parse_response
 from viewcomp.cli import main
 

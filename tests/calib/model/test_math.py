@@ -55,9 +55,9 @@ def test_eq16_refuses_a_pattern_not_brighter_in_its_own_channel():
 
 
 def test_w_tilde_recovered_under_noise_from_simulated_captures():
+    from tests.support.calibrations import small_simulator
     from viewcomp.calib.sim.simulate import capture_patterns
     from viewcomp.calib.sim.simulator import make_screen
-    from viewcomp.calib.sim.testing import small_simulator
 
     sim = small_simulator(128, 64, seed=3)
     screen = make_screen("green", "matte")

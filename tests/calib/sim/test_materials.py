@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_simulator
 from viewcomp.calib.sim.materials import (
     MATERIAL_SHAPES,
     Material,
@@ -32,7 +33,6 @@ from viewcomp.calib.sim.simulator import (
     material_screen,
     simulation_rig,
 )
-from viewcomp.calib.sim.testing import small_simulator
 
 # The README's table: BRDF (RGB, per steradian, three significant digits) at t degrees past
 # the mirror direction.

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_simulator
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.comp.tonemap import choose_predicted_tone_map, choose_tone_map
 from viewcomp.calib.errors import FitError
@@ -34,7 +35,6 @@ from viewcomp.calib.sim.simulator import (
     material_screen,
     white_screen,
 )
-from viewcomp.calib.sim.testing import small_simulator
 from viewcomp.calib.world.eye import eye_from_angle
 
 SIZE = (160, 80)

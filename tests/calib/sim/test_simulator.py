@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_simulator
 from viewcomp.calib.eval.testimages import uniform
 from viewcomp.calib.sim.simulator import (
     DLP_PROJECTOR,
@@ -12,7 +13,6 @@ from viewcomp.calib.sim.simulator import (
     make_screen,
     white_screen,
 )
-from viewcomp.calib.sim.testing import small_simulator
 from viewcomp.calib.world.eye import eye_from_angle
 
 W, H = 96, 48

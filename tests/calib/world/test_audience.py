@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.support.synthetic import make_compensation, smooth_frame, synthetic_model
 from viewcomp.calib.comp.compensation import thumbnail
 from viewcomp.calib.comp.tonemap import choose_predicted_tone_map
 from viewcomp.calib.model.reference import (
@@ -24,7 +25,6 @@ from viewcomp.calib.world.audience import (
     zone_angles,
 )
 from viewcomp.calib.world.eye import eye_from_angle
-from viewcomp.rt.testing import make_compensation, smooth_frame, synthetic_model
 
 W, H = 48, 32
 D, HT = 0.5, 0.035
@@ -370,7 +370,7 @@ def test_hub_publisher_sends_every_face():
 def test_live_renderer_follows_an_audience(gl_ctx):
     """LiveRenderer: an audience from the start and from SetAudience draws what the
     Compensator draws for it; an eye command ends it."""
-    from viewcomp.calib.sim.testing import small_calibration
+    from tests.support.calibrations import small_calibration
     from viewcomp.rt.play.embed import LiveRenderer
     from viewcomp.rt.play.live import SetAngle, SetAudience
 

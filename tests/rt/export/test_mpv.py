@@ -21,9 +21,10 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_calibration
+from tests.support.synthetic import smooth_frame
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.model.reference import compensate
-from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.rt.export.mpv import (
     TONE_TABLE,
     TONE_TABLE_STEP,
@@ -32,7 +33,6 @@ from viewcomp.rt.export.mpv import (
     full_range_sample,
 )
 from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
-from viewcomp.rt.testing import smooth_frame
 from viewcomp.shaders import build_program, load
 
 pytestmark = pytest.mark.usefixtures("session_gl_current")
@@ -420,11 +420,11 @@ def test_real_mpv_registers_a_16_9_clip_like_render(
     writer, losslessly, and decoded by the same reader), so only the compensation differs."""
     from fractions import Fraction
 
+    from tests.support.synthetic import write_clip
     from viewcomp.cli import main
     from viewcomp.rt.export.mpv import mpv_args
     from viewcomp.rt.media.frames import Planes, fit_rect, yuv420p_to_rgb
     from viewcomp.rt.media.video import VideoReader, VideoWriter
-    from viewcomp.rt.testing import write_clip
 
     def first_frame(path: Path, fit: tuple[int, int] | None = None) -> Planes:
         with VideoReader(path, fit=fit, audio="none") as reader:
@@ -476,9 +476,9 @@ def test_a_rejected_shader_fails_loudly(
     then plays uncompensated with exit status 0. With the documented command line (the
     guard script) it exits 2 instead, and `viewcomp check-mpv` exits 2 naming mpv's error;
     a good export plays (0) and passes the check (0)."""
+    from tests.support.synthetic import write_clip
     from viewcomp.cli import main
     from viewcomp.rt.export.mpv import guard_script, mpv_args
-    from viewcomp.rt.testing import write_clip
 
     good, _ = export_mpv_shader(cal, angle=60.0)
     param, _ = export_mpv_shader(cal, angle=60.0, param=True)

@@ -9,17 +9,17 @@ import moderngl
 import numpy as np
 import pytest
 
-from viewcomp.calib.model.reference import compensate
-from viewcomp.calib.world.eye import eye_from_angle
-from viewcomp.rt.gl.compensator import Compensator, pixel_texels
-from viewcomp.rt.gl.context import live_gl_objects
-from viewcomp.rt.media.frames import Planes, rgb_to_yuv420p, yuv420p_to_rgb
-from viewcomp.rt.testing import (
+from tests.support.synthetic import (
     make_compensation,
     smooth_frame,
     synthetic_model,
     uniform_frame,
 )
+from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.rt.gl.compensator import Compensator, pixel_texels
+from viewcomp.rt.gl.context import live_gl_objects
+from viewcomp.rt.media.frames import Planes, rgb_to_yuv420p, yuv420p_to_rgb
 
 pytestmark = pytest.mark.gl
 

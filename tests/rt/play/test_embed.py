@@ -9,10 +9,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.support.calibrations import small_calibration
+from tests.support.synthetic import smooth_frame
 from viewcomp.calib.model.reference import compensate
-from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.rt.gl.context import gl_function
-from viewcomp.rt.testing import smooth_frame
 
 GW, GH = 64, 32
 W, H = 160, 96

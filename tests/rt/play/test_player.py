@@ -22,16 +22,16 @@ import numpy as np
 import pytest
 from pythonosc.osc_message_builder import OscMessageBuilder
 
+from tests.support.calibrations import small_calibration
+from tests.support.synthetic import make_test_video
 from viewcomp.calib.model.reference import compensate
-from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.rt.media.audio import open_alsa
 from viewcomp.rt.media.frames import yuv420p_to_rgb
 from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
-from viewcomp.rt.testing import make_test_video
 
 pytestmark = pytest.mark.usefixtures("session_gl_current")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 RATE = 30
 
 
@@ -299,7 +299,7 @@ def test_keys_mouse_overlay_and_ab(display: str, cal: Any, clip: Path) -> None:
 
 @pytest.mark.gl
 def test_fuzzed_inputs_while_playing(display: str, cal: Any, clip: Path) -> None:
-    from viewcomp.rt.play.fuzzing import fuzz_player
+    from tests.support.fuzzing import fuzz_player
     from viewcomp.rt.play.player import Player
 
     n = 10_000

@@ -25,12 +25,12 @@ import pytest
 from pythonosc.osc_message import OscMessage
 from pythonosc.udp_client import SimpleUDPClient
 
+from tests.support.calibrations import small_calibration
+from tests.support.synthetic import make_test_video
 from viewcomp.calib.model.reference import compensate
-from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.rt.media.frames import Planes, yuv420p_to_rgb
 from viewcomp.rt.media.video import VideoReader
 from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
-from viewcomp.rt.testing import make_test_video
 
 pytestmark = pytest.mark.usefixtures("session_gl_current")
 
@@ -308,7 +308,7 @@ def test_cli_stdin_status_and_osc_feedback(display: str, cal: Any, clips: list[P
 
 @pytest.mark.gl
 def test_embed_example_with_the_frame_in_a_host_texture(display: str) -> None:
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[3]
     p = subprocess.run([sys.executable, str(root / "examples" / "embed_host.py"), "--frames",
                         "20", "--check", "--size", "320x240", "--texture"], capture_output=True,
                        text=True, timeout=120)  # fmt: skip

@@ -12,6 +12,13 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.support.synthetic import (
+    SyntheticCompensation,
+    make_compensation,
+    make_test_video,
+    smooth_frame,
+    synthetic_model,
+)
 from viewcomp.calib.comp.compensation import thumbnail
 from viewcomp.calib.model.reference import compensate
 from viewcomp.calib.world.eye import eye_from_angle
@@ -20,13 +27,6 @@ from viewcomp.rt.media.frames import fit_rgb
 from viewcomp.rt.media.video import VideoError, VideoReader
 from viewcomp.rt.render.pipeline import ImageError, render_file
 from viewcomp.rt.render.tracks import AngleTrack, TrackError, constant_angle, load_angle_track
-from viewcomp.rt.testing import (
-    SyntheticCompensation,
-    make_compensation,
-    make_test_video,
-    smooth_frame,
-    synthetic_model,
-)
 
 W, H = 192, 108
 
@@ -265,7 +265,7 @@ def test_missing_egl_driver_in_a_subprocess(tmp_path) -> None:
     code = (
         "import sys\n"
         "from viewcomp.rt.render.pipeline import render_file\n"
-        "from viewcomp.rt.testing import SyntheticCompensation, synthetic_model\n"
+        "from tests.support.synthetic import SyntheticCompensation, synthetic_model\n"
         "from viewcomp.rt.render.tracks import constant_angle\n"
         "from viewcomp.rt.gl.context import GLUnavailable\n"
         "try:\n"

@@ -411,10 +411,10 @@ def test_tracker_section_is_validated():
 def test_player_follows_the_tracker(tmp_path: Path):
     """play --track-camera: the tracker's thread feeds the player's input queue; the eye the
     player draws with is the one the tracker published last."""
-    from viewcomp.calib.sim.testing import small_calibration
+    from tests.support.calibrations import small_calibration
+    from tests.support.synthetic import make_test_video
     from viewcomp.rt.play.player import Player, PlayerOptions
     from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
-    from viewcomp.rt.testing import make_test_video
     from viewcomp.rt.track.run import TrackerThread
     from viewcomp.rt.track.source import FrameSource
 
@@ -446,7 +446,7 @@ def test_player_follows_the_tracker(tmp_path: Path):
 
 
 def test_play_with_a_bad_track_camera_is_exit_2(tmp_path: Path, capsys):
-    from viewcomp.calib.sim.testing import small_calibration
+    from tests.support.calibrations import small_calibration
 
     cal = small_calibration(64, 32, screen="magenta")
     plain, tracked = tmp_path / "plain.vcb", tmp_path / "tracked.vcb"
