@@ -85,7 +85,7 @@ fi
 STAMP="$VENV/.viewcomp-install-stamp"
 WANT="$(sha256sum pyproject.toml | cut -d' ' -f1)"
 if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] &&
-  "$VENV/bin/python" -c 'import viewcomp, pytest' 2>/dev/null && [ -x "$VENV/bin/ruff" ]; then
+  "$VENV/bin/python" -c 'import viewcomp, pytest, mypy' 2>/dev/null && [ -x "$VENV/bin/ruff" ]; then
   say "viewcomp already installed (pyproject.toml unchanged)"
 else
   say 'installing viewcomp: pip install -e ".[test]"'
