@@ -103,7 +103,9 @@ def check_track(
     return t, d
 
 
-def eye_from_angle(theta_deg: float, distance: float, height: float) -> np.ndarray:
+def eye_from_angle(
+    theta_deg: float | np.ndarray, distance: float | np.ndarray, height: float | np.ndarray
+) -> np.ndarray:
     """E_theta = (d cos theta, h, d sin theta): theta = 90 is straight in front, < 90 right.
 
     Args:
@@ -112,10 +114,12 @@ def eye_from_angle(theta_deg: float, distance: float, height: float) -> np.ndarr
         height: h, eye height y in metres.
 
     Returns:
-        (3,) float64 eye position in metres.
+        float64 eye positions in metres: (3,) for scalars; (..., 3) for arrays, which
+        broadcast together (e.g. a walk's angles, distances and heights over time).
     """
     t = np.deg2rad(theta_deg)
-    return np.array([distance * np.cos(t), height, distance * np.sin(t)])
+    parts = np.broadcast_arrays(distance * np.cos(t), height, distance * np.sin(t))
+    return np.stack(parts, axis=-1).astype(np.float64)
 
 
 def eye_to_polar(eye: np.ndarray | Sequence[float]) -> tuple[float, float, float]:

@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.io.atomic import atomic_path, write_text_atomic
+from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.calib.world.rig import Device, Rig, default_rig, rig_to_toml
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, boxes_from_eyes
 
@@ -77,11 +78,11 @@ def walk(
     n = max(1, round(seconds * fps))
     t = np.arange(n) / fps
     phase = 2.0 * math.pi * t / seconds
-    theta = np.radians(90.0 + half_angle * np.sin(phase))
+    theta = 90.0 + half_angle * np.sin(phase)  # degrees
     mid, amp = (near + far) / 2.0, (far - near) / 2.0
     d = mid - amp * np.cos(2.0 * phase + 0.6)
     y = height + 0.03 * np.sin(3.0 * phase)
-    return t, np.stack([d * np.cos(theta), y, d * np.sin(theta)], axis=-1)
+    return t, eye_from_angle(theta, d, y)
 
 
 @functools.lru_cache(maxsize=1)
