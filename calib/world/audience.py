@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewcomp.calib.errors import AudienceError
-from viewcomp.calib.world.eye import EyeError, check_angle, check_eye, eye_from_angle
+from viewcomp.calib.world.eye import EyeError, check_angle, check_eye, eye_from_angle, eye_to_polar
 
 MAX_VIEWERS = 16  # viewers in one audience (the shader's loop bound)
 ZONE_VIEWERS = 7  # viewers of a zone A:B without a count (every 10 degrees over 60:120)
@@ -103,8 +103,8 @@ def zone(lo: float, hi: float, n: int, distance: float, height: float) -> Audien
 
 
 def zone_angles(audience: Audience) -> np.ndarray:
-    """Each viewer's angle in degrees (atan2(z, x)), (K,)."""
-    return np.degrees(np.arctan2(audience.eyes[:, 2], audience.eyes[:, 0]))
+    """Each viewer's angle in degrees (:func:`~viewcomp.calib.world.eye.eye_to_polar`), (K,)."""
+    return np.array([eye_to_polar(e)[0] for e in audience.eyes])
 
 
 def _number(text: str, item: str) -> float:
