@@ -23,16 +23,20 @@ the repository root::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
 import os
 import statistics
 import subprocess
-import sys
 import time
 from itertools import pairwise
-from pathlib import Path
 from typing import Any
 
 DEFAULT_SIZES = "640x320,1920x1080,3840x2160"
@@ -46,8 +50,11 @@ def simulated(cache: Path, size: str) -> Path:
     """The capture set for ``size`` in ``cache``, simulated on first use (not measured)."""
     out = cache / f"captures_{size}"
     if not (out / "rig.toml").exists():
-        subprocess.run(_viewcomp("simulate", "--size", size, "--force", str(out)), check=True,
-                       stdout=subprocess.DEVNULL)  # fmt: skip
+        subprocess.run(
+            _viewcomp("simulate", "--size", size, "--force", str(out)),
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
     return out
 
 
@@ -57,8 +64,11 @@ def _calibrate(cache: Path, size: str) -> dict[str, Any]:
     # One child per grid, started from here, so ru_maxrss is the calibration's alone: Popen
     # and a blocking wait4 on its pid (communicate() would reap it before wait4 could).
     t0 = time.perf_counter()
-    proc = subprocess.Popen(_viewcomp("calibrate", str(captures), "-o", str(bundle)),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+    proc = subprocess.Popen(
+        _viewcomp("calibrate", str(captures), "-o", str(bundle)),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     assert proc.stderr is not None
     err = proc.stderr.read()  # until the child closes it (its exit)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -78,10 +88,10 @@ def startup_child(bundle: str) -> None:
     """The measured start-up, in this (fresh) process: prints one JSON line of stage ms."""
     t = {"start": time.perf_counter()}
 
+    from tests.support.synthetic import smooth_frame
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.rt.gl.context import create_context
     from viewcomp.rt.play.embed import LiveRenderer
-    from viewcomp.rt.testing import smooth_frame
 
     t["import"] = time.perf_counter()
     cpu_import = time.process_time()
@@ -124,8 +134,11 @@ def _startup(bundle: Path, runs: int) -> dict[str, Any]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default=DEFAULT_SIZES, help=f"grids WxH (default {DEFAULT_SIZES})")
-    ap.add_argument("--cache", default="/tmp/viewcomp-bench-calibrate",
-                    help="folder for the simulated captures and bundles (kept)")  # fmt: skip
+    ap.add_argument(
+        "--cache",
+        default="/tmp/viewcomp-bench-calibrate",
+        help="folder for the simulated captures and bundles (kept)",
+    )
     ap.add_argument("--startup", default="1920x1080", help="grid of the start-up runs, or none")
     ap.add_argument("--startup-runs", type=int, default=3)
     ap.add_argument("--startup-child", help=argparse.SUPPRESS)

@@ -1,7 +1,7 @@
 """The mpv export's size and mpv's load time per grid and storage: prints one JSON object.
 
 For each projector grid (640x320 and 1920x1080 by default; a simulated glossy magenta
-screen calibrated by :func:`viewcomp.calib.sim.testing.small_calibration`, or ``--calib``
+screen calibrated by :func:`tests.support.calibrations.small_calibration`, or ``--calib``
 bundles) and each way of storing the maps (``viewcomp export-mpv --precision``: 16, 8 and
 32 for the fixed angle; ``maps16``: the 8 eye-following maps of ``--param`` with the angle
 a constant, as the fixed-angle export was stored before it folded the eye in), it exports
@@ -20,6 +20,12 @@ Run from the repository root (the 1080p calibration takes about 16 s and 0.9 GB)
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
@@ -28,14 +34,13 @@ import statistics
 import subprocess
 import tempfile
 import time
-from pathlib import Path
 from typing import Any
 
+from tests.support.calibrations import small_calibration
+from tests.support.synthetic import smooth_frame, write_clip
 from viewcomp.calib.fit.calibrate import Calibration
-from viewcomp.calib.sim.testing import small_calibration
 from viewcomp.rt.export.mpv import export_mpv_shader
 from viewcomp.rt.play.xvfb import Xvfb
-from viewcomp.rt.testing import smooth_frame, write_clip
 
 VARIANTS = {"16": {"precision": 16}, "8": {"precision": 8}, "32": {"precision": 32},
             "maps16": {"precision": 16, "param": True}}  # fmt: skip

@@ -2,7 +2,7 @@
 
 A windowed player (a private Xvfb, a 64x32 simulated calibration, a 4-second 30 frames/s
 clip, looping) receives 10,000 items, half OSC datagrams and half stdin lines, about 60 %
-malformed, from another process (:mod:`viewcomp.rt.play.fuzzing`). Per round it prints the
+malformed, from another process (:mod:`tests.support.fuzzing`). Per round it prints the
 longest gap between main-loop iterations (the figure a kiosk cares about: a stall shows as a
 frozen picture), how long after the sender ended every valid item had been applied, and the
 frames presented and dropped. On a shared machine these vary with whoever else runs: compare
@@ -13,18 +13,22 @@ rounds of one run, never against a fixed number. Run from the repository root::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
-import sys
 import tempfile
-from pathlib import Path
 
-from viewcomp.calib.sim.testing import small_calibration
-from viewcomp.rt.play.fuzzing import fuzz_player
+from tests.support.calibrations import small_calibration
+from tests.support.fuzzing import fuzz_player
+from tests.support.synthetic import make_test_video
 from viewcomp.rt.play.player import Player, PlayerOptions
 from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
-from viewcomp.rt.testing import make_test_video
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,9 +48,14 @@ def main(argv: list[str] | None = None) -> int:
 
             def make(fd: int) -> Player:
                 opts = PlayerOptions(
-                    windowed=True, audio=False, stdin_fd=fd, osc=("127.0.0.1", 0),
-                    loop=True, eye_tau=0.1, max_seconds=180.0,
-                )  # fmt: skip
+                    windowed=True,
+                    audio=False,
+                    stdin_fd=fd,
+                    osc=("127.0.0.1", 0),
+                    loop=True,
+                    eye_tau=0.1,
+                    max_seconds=180.0,
+                )
                 return Player(cal, [clip], opts)
 
             res = fuzz_player(make, args.items)

@@ -26,7 +26,7 @@ much less, so compare ratios within one run and look at both.
   and with the eye moving every frame (``--track``). The clip: a 1080p pan over a
   procedural landscape (``viewcomp.calib.eval.testimages``), clean and with sensor-like grain.
 
-Synthetic models (:mod:`viewcomp.rt.testing`) stand in for calibrations at 720p..2160p (the
+Synthetic models (:mod:`tests.support.synthetic`) stand in for calibrations at 720p..2160p (the
 GL cost depends on the grid, not on the numbers). Run from the repository root::
 
     .venv/bin/python bench/bench_render.py [--sizes 720p,1080p,2160p] [--repeats 5]
@@ -36,23 +36,28 @@ GL cost depends on the grid, not on the numbers). Run from the repository root::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
 import os
 import platform
 import statistics
-import sys
 import tempfile
 import time
 from collections.abc import Callable
-from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
 import av
 import numpy as np
 
+from tests.support.synthetic import SyntheticCompensation, smooth_frame, synthetic_model
 from viewcomp.calib.model.reference import compensate
 from viewcomp.rt.gl.compensator import Compensator, eye_from_angle
 from viewcomp.rt.gl.context import create_context, finish
@@ -60,7 +65,6 @@ from viewcomp.rt.media.frames import rgb_to_yuv420p, yuv420p_to_rgb
 from viewcomp.rt.media.video import VideoReader
 from viewcomp.rt.render.pipeline import render_file
 from viewcomp.rt.render.tracks import constant_angle
-from viewcomp.rt.testing import SyntheticCompensation, smooth_frame, synthetic_model
 
 SIZES = {"720p": (1280, 720), "1080p": (1920, 1080), "2160p": (3840, 2160)}
 EYE = eye_from_angle(60.0, 0.5, 0.035)
@@ -200,8 +204,8 @@ def bench_cpu_1080p(repeats: int) -> dict[str, Any]:
 def bench_params(repeats: int, grid: tuple[int, int]) -> dict[str, Any]:
     """comp(thumb, eye, t) of the real Compensation, thumbnail of a 1080p frame included."""
     try:
+        from tests.support.calibrations import small_calibration
         from viewcomp.calib.comp.compensation import THUMB_SIDE, Compensation
-        from viewcomp.calib.sim.testing import small_calibration
         from viewcomp.rt.media.frames import thumbnail_planes
     except ImportError as exc:
         return {"unavailable": str(exc)}

@@ -19,24 +19,28 @@ whether the outputs are bit-identical.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import datetime
 import json
 import os
 import statistics
-import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 import viewcomp.rt.gl.compensator as compensator
+from tests.support.synthetic import smooth_frame, synthetic_model
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.compensator import Compensator
 from viewcomp.rt.gl.context import create_context, finish
 from viewcomp.rt.media.frames import rgb_to_yuv420p
-from viewcomp.rt.testing import smooth_frame, synthetic_model
 from viewcomp.shaders import build_program, load
 
 

@@ -40,13 +40,17 @@ def main(argv: list[str] | None = None) -> int:
             cam.capture(screen, gray, f"r{r}k{k}")
         rounds.append(1e3 * (time.perf_counter() - t0) / args.captures)
     cw, ch = rig.camera.resolution
-    print(json.dumps({
-        "bench": "simcamera",
-        "utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "camera": f"{cw}x{ch}",
-        "ms_per_capture_median": round(statistics.median(rounds), 1),
-        "ms_per_capture_rounds": [round(x, 1) for x in rounds],
-    }))  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "bench": "simcamera",
+                "utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "camera": f"{cw}x{ch}",
+                "ms_per_capture_median": round(statistics.median(rounds), 1),
+                "ms_per_capture_rounds": [round(x, 1) for x in rounds],
+            }
+        )
+    )
     return 0
 
 

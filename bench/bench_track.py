@@ -79,10 +79,13 @@ def _stats(ms: list[float]) -> dict[str, float | int]:
     a = np.asarray(ms, np.float64)
     if a.size == 0:
         return {"n": 0}
-    return {"n": int(a.size), "median_ms": round(float(np.median(a)), 1),
-            "p95_ms": round(float(np.percentile(a, 95)), 1),
-            "max_ms": round(float(a.max()), 1),
-            "within_100ms": round(float(np.mean(a <= 100.0)), 4)}  # fmt: skip
+    return {
+        "n": int(a.size),
+        "median_ms": round(float(np.median(a)), 1),
+        "p95_ms": round(float(np.percentile(a, 95)), 1),
+        "max_ms": round(float(a.max()), 1),
+        "within_100ms": round(float(np.mean(a <= 100.0)), 4),
+    }
 
 
 def one_round(images: list[np.ndarray], empty_frames: int) -> dict[str, object]:

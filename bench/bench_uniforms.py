@@ -22,13 +22,18 @@ Run from the repository root::
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import contextlib
 import datetime
 import json
 import os
 import statistics
-import sys
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -36,10 +41,10 @@ from typing import Any
 import numpy as np
 
 import viewcomp.rt.gl.compensator as compensator
+from tests.support.synthetic import smooth_frame, synthetic_model
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.compensator import Compensator
 from viewcomp.rt.gl.context import create_context, finish
-from viewcomp.rt.testing import smooth_frame, synthetic_model
 from viewcomp.shaders import build_program, load
 
 # The block: the frame's 4 vec4 (as v_frame), then the model's numbers.
@@ -136,8 +141,11 @@ def main(argv: list[str] | None = None) -> int:
         "load_avg_start": [round(x, 2) for x in os.getloadavg()],
     }  # fmt: skip
     kinds = ("literals", "ubo_frame", "ubo_all")
-    for name, method, cached in (("pixel_cached", "pixel", True), ("pixel_solve", "pixel", False),
-                                 ("paper", "paper", False)):  # fmt: skip
+    for name, method, cached in (
+        ("pixel_cached", "pixel", True),
+        ("pixel_solve", "pixel", False),
+        ("paper", "paper", False),
+    ):
         comps = {k: _make(k, method, cached, ctx, size) for k in kinds}  # type: ignore[arg-type]
         try:
             outs = {k: c.read() for k, c in comps.items()}

@@ -19,21 +19,26 @@ than 0.1 % of pixel-channels differ by more than one level.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# The repository on sys.path: the synthetic models and calibrations are tests.support's.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import argparse
 import math
-import sys
 import time
 
 import glfw
 import moderngl
 import numpy as np
 
+from tests.support.synthetic import smooth_frame
 from viewcomp.calib.fit.calibrate import Calibration
 from viewcomp.calib.model.reference import compensate
 from viewcomp.rt.media.frames import Planes, yuv420p_to_rgb
 from viewcomp.rt.media.video import VideoReader
 from viewcomp.rt.play.embed import LiveRenderer
-from viewcomp.rt.testing import smooth_frame
 
 
 def tracker_angle(t: float) -> float:
@@ -71,7 +76,7 @@ def main() -> int:
     if args.calib:
         cal = Calibration.load(args.calib)
     else:
-        from viewcomp.calib.sim.testing import small_calibration
+        from tests.support.calibrations import small_calibration
 
         cal = small_calibration(160, 90, screen="magenta")
     width, height = (int(v) for v in args.size.split("x"))

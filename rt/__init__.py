@@ -11,5 +11,4 @@ Sub-packages, in the order a frame flows through them (nothing GL is imported he
 - ``export``: ``viewcomp export-mpv``: the compensation as an mpv user shader.
 - ``track``: ``viewcomp track``: faces in a camera's frames -> viewers' eye positions, live
   (OpenCV, no GL).
-- ``testing`` (a module): synthetic models, frames and clips for tests and benchmarks.
 """

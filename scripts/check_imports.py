@@ -1,8 +1,13 @@
 """Fail on any import cycle among viewcomp's modules.
 
 Every import counts: at module level, inside functions (lazy) and under ``if TYPE_CHECKING``,
-because each of them is a dependency a reader has to follow. The packages are found through
-pyproject.toml's ``package-dir`` mapping (``viewcomp.calib`` lives in ``calib/``, and so on).
+because each of them is a dependency a reader has to follow. So do loads through
+``importlib.import_module`` (and ``__import__``): a constant name is one edge; a name built
+at run time (an f-string, ``"prefix." + name``) is an edge to every module whose name starts
+with its constant prefix, e.g. the command table that ``viewcomp.cli`` loads as
+``f"viewcomp.commands.{name}"`` is an edge to each module of ``viewcomp.commands``.
+The packages are found through pyproject.toml's ``package-dir`` mapping (``viewcomp.calib``
+lives in ``calib/``, and so on).
 
 Usage: ``python scripts/check_imports.py`` (exit 0: no cycle; exit 1: the cycles, one a line).
 """
@@ -46,6 +51,9 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
     here = name if is_pkg else name.rpartition(".")[0]
     out: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Call):
+            out |= dynamic_imports(node, modules) - {name}
+            continue
         if isinstance(node, ast.Import):
             targets = [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -69,6 +77,43 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
             if parts and ".".join(parts) != name:
                 out.add(".".join(parts))
     return out
+
+
+def _constant_prefix(arg: ast.expr) -> tuple[str, bool]:
+    """(the constant text an import name starts with, whether that is the whole name)."""
+    if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+        return arg.value, True
+    if isinstance(arg, ast.JoinedStr):
+        text = ""
+        for part in arg.values:
+            if not (isinstance(part, ast.Constant) and isinstance(part.value, str)):
+                return text, False
+            text += part.value
+        return text, True
+    if isinstance(arg, ast.BinOp) and isinstance(arg.op, ast.Add):
+        left, whole = _constant_prefix(arg.left)
+        if not whole:
+            return left, False
+        right, right_whole = _constant_prefix(arg.right)
+        return left + right, right_whole
+    return "", False
+
+
+def dynamic_imports(call: ast.Call, modules: dict[str, Path]) -> set[str]:
+    """The viewcomp modules an ``importlib.import_module(...)`` or ``__import__(...)`` call can
+    load (see the module docstring); empty for any other call."""
+    f = call.func
+    is_import = (isinstance(f, ast.Attribute) and f.attr == "import_module") or (
+        isinstance(f, ast.Name) and f.id in ("import_module", "__import__")
+    )
+    if not is_import or not call.args:
+        return set()
+    prefix, whole = _constant_prefix(call.args[0])
+    if whole:
+        return {prefix} if prefix in modules else set()
+    if not prefix.startswith("viewcomp"):
+        return set()
+    return {m for m in modules if m.startswith(prefix) and m != prefix.rstrip(".")}
 
 
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Set up (scripts/setup.sh), then the import-cycle check, lint, format check and tests.
+# Set up (scripts/setup.sh), then the import-cycle check, the size check, the type check
+# (mypy), lint, format check and tests.
 # Arguments go to pytest.
 # Runs every check even after a failure, and exits non-zero if any failed.
 # Under CI=true, VIEWCOMP_REQUIRE_GL=1: GL tests fail instead of skipping when GL is missing.
@@ -23,6 +24,8 @@ run() {
 }
 
 run .venv/bin/python scripts/check_imports.py
+run .venv/bin/python scripts/check_sizes.py
+run .venv/bin/python scripts/check_types.py
 run .venv/bin/ruff check .
 run .venv/bin/ruff format --check .
 run .venv/bin/python -m pytest "$@"

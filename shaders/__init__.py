@@ -39,6 +39,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from viewcomp.calib.errors import ShaderError
+
 if TYPE_CHECKING:
     import moderngl
 
@@ -60,17 +62,13 @@ _MESA_LOC = re.compile(r"^(\d+):(\d+)\((\d+)\):\s*(.*)$")
 _NV_LOC = re.compile(r"^(\d+)\((\d+)\)\s*:\s*(.*)$")
 
 
-class ShaderError(RuntimeError):
-    """A shader failed to load, compile or link; the message names file, stage and line."""
-
-
 def list_shaders() -> list[str]:
     """Names of every ``.glsl`` file shipped in this package, sorted."""
     root = importlib.resources.files(__package__)
     return sorted(p.name for p in root.iterdir() if p.name.endswith(".glsl"))
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def load(name: str) -> str:
     """The text of the package's shader file ``name`` (e.g. ``"yuv.glsl"``), cached.
 

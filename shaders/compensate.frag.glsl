@@ -40,7 +40,7 @@
 #define N_INV 2
 #endif
 // The inverse LUT's squared position of the pixel method's y: pixel_t2(y, SQ_SCALE, SQ_OFF,
-// SQ_LO, SQ_HI) (compensate_core.glsl; viewcomp.rt.gl.compensator.inverse_position).
+// SQ_LO, SQ_HI) (compensate_core.glsl; viewcomp.calib.model.shader_inputs.inverse_position).
 #ifndef SQ_SCALE
 #define SQ_SCALE vec3(1.0)
 #define SQ_OFF vec3(0.0)
@@ -73,7 +73,7 @@ flat in vec4 v_frame[4];
 uniform usampler2D u_rgb;     // frame, 8-bit levels (RGB8UI)
 uniform samplerBuffer u_fwd;  // R32F, 3 x 256: [256 c + l] = fwd_lut[l, c] at integer levels
 uniform samplerBuffer u_inv;  // RG32F, 3 x N: [N c + i] = (inv_lut[i, c], inv_lut[i + 1, c])
-// pixel method: the per-pixel maps (viewcomp.rt.gl.compensator.pixel_texels), 8 RGBA32F
+// pixel method: the per-pixel maps (viewcomp.calib.model.shader_inputs.pixel_texels), 8 RGBA32F
 // texels per pixel side by side: texel k of grid pixel (x, y) is u_maps[8 (y W + x) + k].
 uniform samplerBuffer u_maps;
 uniform samplerBuffer u_lobe;  // RGBA32F, LOBE_N: the lobe table (RuntimeModel.lobe) | 0

@@ -18,7 +18,7 @@ struct PixelMaps {
     vec4 pos;
 };
 
-// The 8 texels of one pixel as stored (viewcomp.rt.gl.compensator.pixel_texels) -> PixelMaps.
+// The 8 texels of one pixel as stored (viewcomp.calib.model.shader_inputs.pixel_texels) -> PixelMaps.
 PixelMaps pixel_maps(vec4 t0, vec4 t1, vec4 t2, vec4 t3, vec4 t4, vec4 t5, vec4 t6, vec4 t7) {
     PixelMaps m;
     m.w0 = t0;
@@ -96,7 +96,7 @@ vec3 solve_pixel(PixelMaps m, vec3 pw, vec3 eye, float alpha, float beta, bool h
 // Pixel method: the inverse LUT's squared position t2 of y. The reference clamps y to
 // [0, 1], then the position to [0, (N - 1)^2]; both maps are increasing, so that is one
 // clamp with folded bounds: t2 = clamp(scale y - off, lo, hi)
-// (viewcomp.rt.gl.compensator.inverse_position, on the CPU).
+// (viewcomp.calib.model.shader_inputs.inverse_position, on the CPU).
 vec3 pixel_t2(vec3 y, vec3 scale, vec3 off, vec3 lo, vec3 hi) {
     return clamp(scale * y - off, lo, hi);
 }
@@ -167,7 +167,7 @@ vec3 cached_t2(vec4 g0, vec4 g1, vec4 g2, vec3 b, vec3 d, vec3 pw, float alpha, 
 }
 
 // Paper method: t2 = A pw + c with row i of A | c in a_i, folded on the CPU from alpha,
-// beta, Ww, Wc_inv and the LUT domain (viewcomp.rt.gl.compensator.paper_rows), clamped to
+// beta, Ww, Wc_inv and the LUT domain (viewcomp.calib.model.shader_inputs.paper_rows), clamped to
 // [0, top] with top = (N - 1)^2.
 vec3 paper_t2(vec4 a0, vec4 a1, vec4 a2, vec3 pw, float top) {
     vec3 t2 = vec3(dot(a0.xyz, pw), dot(a1.xyz, pw), dot(a2.xyz, pw)) + vec3(a0.w, a1.w, a2.w);

@@ -2,7 +2,7 @@
 // tone map folded in on the CPU as for the GL compensator.
 //
 // Defines (literals, besides those of mpv_lut.glsl): VC_A0, VC_A1, VC_A2, the rows of
-// paper_t2 (viewcomp.rt.gl.compensator.paper_rows).
+// paper_t2 (viewcomp.calib.model.shader_inputs.paper_rows).
 
 #include "mpv_lut.glsl"
 

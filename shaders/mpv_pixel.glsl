@@ -1,5 +1,5 @@
 // The pixel method's eye-following mpv hook of `viewcomp export-mpv --param`: the maps
-// VC_MAP0..7 (texel k of viewcomp.rt.gl.compensator.pixel_texels in VC_MAPk) sampled at the
+// VC_MAP0..7 (texel k of viewcomp.calib.model.shader_inputs.pixel_texels in VC_MAPk) sampled at the
 // output pixel, solved for the eye as the GL compensator's compensate.frag.glsl does. (A
 // fixed eye: mpv_held.glsl.)
 //
@@ -8,7 +8,8 @@
 // half-vector angle), VC_LOBE_N (the lobe table's entries, row 2 of VC_LUT), VC_LOBE_BLACK
 // (the projector leak's share of the black level), VC_SQ_SCALE,
 // VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI (pixel_t2). The eye and the tone map follow the parameter
-// angle (degrees; mpv's PARAM), the eye at
+// angle (degrees; mpv's PARAM), clamped to [VC_ANGLE_MIN, VC_ANGLE_MAX] (the limits of
+// viewcomp.calib.world.eye, whose eye_from_angle is the formula here), the eye at
 // (VC_DIST cos, VC_HEIGHT, VC_DIST sin) and the tone map interpolated in a table of
 // VC_TONE_N entries from VC_TONE_FIRST degrees every VC_TONE_STEP (VC_TONE_ALPHA_INIT,
 // VC_TONE_BETA_INIT).
@@ -22,7 +23,7 @@ const float VC_TONE_ALPHA[VC_TONE_N] = VC_TONE_ALPHA_INIT;
 const float VC_TONE_BETA[VC_TONE_N] = VC_TONE_BETA_INIT;
 
 vec3 vc_eye() {
-    float t = radians(clamp(angle, 1.0, 179.0));
+    float t = radians(clamp(angle, VC_ANGLE_MIN, VC_ANGLE_MAX));
     return vec3(VC_DIST * cos(t), VC_HEIGHT, VC_DIST * sin(t));
 }
 

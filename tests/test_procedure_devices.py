@@ -17,12 +17,12 @@ from viewcomp.calib.hw.autoexposure import TARGET, bright_level, search_exposure
 from viewcomp.calib.hw.bracket import Bracket
 from viewcomp.calib.hw.camlock import lock_controls
 from viewcomp.calib.hw.interface import DeviceError
-from viewcomp.calib.hw.mono import is_mono_set
 from viewcomp.calib.hw.procedure import run_capture
 from viewcomp.calib.hw.reader import FrameReader
 from viewcomp.calib.hw.session import Session
 from viewcomp.calib.hw.simrig import SimulatedRig
 from viewcomp.calib.io.captureset import read_capture_set
+from viewcomp.calib.io.checks import is_mono_set
 from viewcomp.calib.io.hdr import DEFAULT_STOPS
 from viewcomp.calib.sim.simcamera import scaled_camera_rig, written_rig
 from viewcomp.calib.sim.simulator import (

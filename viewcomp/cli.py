@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from viewcomp import __version__
-from viewcomp.calib.errors import ViewcompError, describe_os_error
+from viewcomp.calib.errors import UsageError, ViewcompError, describe_os_error
 
 # Order as shown in --help; each module has register(subparsers) and its run functions.
 COMMANDS = (
@@ -65,10 +65,6 @@ def build_parser() -> argparse.ArgumentParser:
     for name in COMMANDS:
         importlib.import_module(f"viewcomp.commands.{name.replace('-', '_')}").register(sub)
     return parser
-
-
-class UsageError(ViewcompError):
-    """A command-line value that is wrong: the message says which and what is expected."""
 
 
 BUG_NOTE = (

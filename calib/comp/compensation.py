@@ -86,7 +86,7 @@ def _sample_model(model: RuntimeModel, rows: np.ndarray, cols: np.ndarray) -> Ru
         model,
         refl=model.refl[rows][:, cols],
         pos=model.pos[rows][:, cols],
-        Ww=sub(model.Ww, 4),
+        Ww=model.Ww if model.Ww.ndim < 4 else model.Ww[rows][:, cols],
         Wc=sub(model.Wc, 4),
         Aw=sub(model.Aw, 3),
         Ac=sub(model.Ac, 3),
@@ -149,6 +149,7 @@ class Compensation:
         """A model of the right method and grid (the paper's: at the calibration camera)."""
         if self._pixel_model is not None:
             return self._pixel_model
+        assert self.cal.paper is not None  # Compensation() required the paper's method
         return self.paper_model(self.cal.paper.geometry.camera, np.ones(3))
 
     def paper_model(self, eye: np.ndarray, gains: np.ndarray) -> RuntimeModel:
@@ -156,6 +157,7 @@ class Compensation:
         key = (*np.round(np.asarray(eye, float), 5), *np.round(gains, 3))
         m = self._paper.get(key)
         if m is None:
+            assert self.cal.paper is not None  # Compensation() required the paper's method
             m = self.cal.paper.runtime_model(np.asarray(eye, float), np.round(gains, 3))
             self._paper[key] = m
             if len(self._paper) > _CACHE:
@@ -192,6 +194,7 @@ class Compensation:
         small = self._small_model(model, thumb.shape[:2])
         cw = white_response(small, thumb).astype(np.float64)
         if model.method == "paper":
+            assert model.Wc_inv is not None  # a paper model always has it
             u = cw @ model.Wc_inv.T.astype(np.float64)
             v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
             return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
@@ -199,8 +202,9 @@ class Compensation:
             mk, ak, p, d = self._audience(small, eye)
             u = np.einsum("...ij,...j->...i", p, cw)
             viewers = (mk, ak, eye.weights)
-            return choose_predicted_tone_map(u, p.sum(axis=-1), -d, mk[0], cw, 0.0, 1.0, start,
-                                             viewers)  # fmt: skip
+            return choose_predicted_tone_map(
+                u, p.sum(axis=-1), -d, mk[0], cw, 0.0, 1.0, start, viewers
+            )
         m, m_inv, a = self._screen(small, eye)
         u, v, c = tone_terms(m_inv, cw, a)
         return choose_predicted_tone_map(u, v, c, m, cw, 0.0, 1.0, start)
@@ -241,6 +245,7 @@ class Compensation:
         gains = None
         if self.method == "pixel":
             model = self._pixel_model
+            assert model is not None  # made in __init__ for the pixel method
             # Video: a local search from the last frame's choice, the whole grid every
             # FULL_SEARCH_FRAMES frames (a scene cut) and for stills.
             warm = t is not None and self._frames % FULL_SEARCH_FRAMES != 0
@@ -252,8 +257,9 @@ class Compensation:
             # Stills: the paper's three feedback iterations from i_c = i_s. Video (t given):
             # the iteration carries over from frame to frame, one step per frame, starting
             # from the previous frame's gains - the same fixed point, spread over time.
+            assert not isinstance(eye, Audience)  # refused above for the paper's method
             video = t is not None and self._gains is not None
-            gains = self._gains if video else np.ones(3)
+            gains = self._gains if video and self._gains is not None else np.ones(3)
             model = self.paper_model(eye, gains)
             tone = self.tone_map(model, thumb, eye)
             for _ in range(1 if video else self.feedback):

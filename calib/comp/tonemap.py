@@ -49,6 +49,35 @@ class ToneMap:
 BETA_LIMIT = 100.0  # |beta| beyond this (linear camera units, full scale 1) is never useful
 
 
+def _window_candidates(
+    starts: np.ndarray, ends: np.ndarray, at_zero: int, w: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """For :func:`_best_per_alpha`: the candidate betas (0, then the interval starts and ends
+    within [-w, w], from the sorted runs ``starts`` and ``ends``) and how many intervals hold
+    each (``at_zero`` of them hold 0)."""
+    k0, k1 = np.searchsorted(starts, -w, "left"), np.searchsorted(starts, w, "right")
+    e0, e1 = np.searchsorted(ends, -w, "left"), np.searchsorted(ends, w, "right")
+    sw, ew = starts[k0:k1], ends[e0:e1]
+    ms = sw.size
+    # Intervals holding beta = #starts <= beta - #ends < beta. At the k-th start this is
+    # k + 1 - #ends < start (exact at the last of equal starts, lower at the others,
+    # which therefore never win); at the k-th end, #starts <= end - k (exact at the
+    # first of equal ends). Both counts come from where each lands when the two sorted
+    # runs are merged, starts first among equals (a stable sort of the two runs is one
+    # merge): the k-th start at position j has j - k ends < it before it; the k-th end
+    # at position j has j - k starts <= it before it. In the window, k and j count from
+    # its lower edge; the k0 starts and e0 ends below it come first.
+    cand = np.concatenate([np.zeros(1), sw, ew])
+    pos = np.empty(cand.size - 1, np.intp)
+    pos[np.argsort(cand[1:], kind="stable")] = np.arange(pos.size)
+    rank2 = 2 * np.arange(max(ms, ew.size))
+    inside = np.empty(cand.size, np.intp)
+    inside[0] = at_zero
+    inside[1 : ms + 1] = (k0 - e0 + 1) + rank2[:ms] - pos[:ms]
+    inside[ms + 1 :] = (k0 - e0) + pos[ms:] - rank2[: ew.size]
+    return cand, inside
+
+
 def _best_per_alpha(
     alphas: np.ndarray,
     u: np.ndarray,
@@ -112,26 +141,7 @@ def _best_per_alpha(
         # Only betas whose penalty mu (beta / scale)^2 stays within the cost of beta = 0 can
         # win (or tie) against it: the window [-w, w] of the sorted runs, found by bisection.
         w = scale * np.sqrt((clipped0 + penalty + 1e-9) / mu) if mu > 0 else np.inf
-        k0, k1 = np.searchsorted(starts, -w, "left"), np.searchsorted(starts, w, "right")
-        e0, e1 = np.searchsorted(ends, -w, "left"), np.searchsorted(ends, w, "right")
-        sw, ew = starts[k0:k1], ends[e0:e1]
-        ms = sw.size
-        # Intervals holding beta = #starts <= beta - #ends < beta. At the k-th start this is
-        # k + 1 - #ends < start (exact at the last of equal starts, lower at the others,
-        # which therefore never win); at the k-th end, #starts <= end - k (exact at the
-        # first of equal ends). Both counts come from where each lands when the two sorted
-        # runs are merged, starts first among equals (a stable sort of the two runs is one
-        # merge): the k-th start at position j has j - k ends < it before it; the k-th end
-        # at position j has j - k starts <= it before it. In the window, k and j count from
-        # its lower edge; the k0 starts and e0 ends below it come first.
-        cand = np.concatenate([np.zeros(1), sw, ew])
-        pos = np.empty(cand.size - 1, np.intp)
-        pos[np.argsort(cand[1:], kind="stable")] = np.arange(pos.size)
-        rank2 = 2 * np.arange(max(ms, ew.size))
-        inside = np.empty(cand.size, np.intp)
-        inside[0] = at_zero
-        inside[1 : ms + 1] = (k0 - e0 + 1) + rank2[:ms] - pos[:ms]
-        inside[ms + 1 :] = (k0 - e0) + pos[ms:] - rank2[: ew.size]
+        cand, inside = _window_candidates(starts, ends, int(at_zero), w)
         clipped = 1.0 - (inside + fixed_in) / total
         cost = clipped + penalty + mu * (cand / scale) ** 2
         # Smallest cost; among equal costs the beta closest to 0.
@@ -145,7 +155,7 @@ def _best_per_alpha(
 def choose_tone_map(
     u: np.ndarray,
     v: np.ndarray,
-    c: np.ndarray,
+    c: np.ndarray | float,
     lo: np.ndarray | float,
     hi: np.ndarray | float,
     lam: float = DEFAULT_LAMBDA,
@@ -282,75 +292,106 @@ def choose_predicted_tone_map(
     n = int(np.prod(shape[:-1]))
     if n == 0:
         return ToneMap(1.0, 0.0, 0.0, 0.0)
-    k = max(1, int(np.ceil(n / PREDICTED_PIXELS)))
-
-    def flat(x: np.ndarray) -> np.ndarray:
-        return np.broadcast_to(np.asarray(x, np.float64), shape).reshape(-1, 3)[::k]
-
-    u, v, c, w = flat(u), flat(v), flat(c), flat(white)
-    lo_a = np.broadcast_to(np.asarray(lo, np.float64), (3,))
-    hi_a = np.broadcast_to(np.asarray(hi, np.float64), (3,))
-    goal = _lab(w)
-    scale = max(float(w.mean()), 1e-4)
-    if viewers is None:
-        m = np.broadcast_to(np.asarray(m, np.float64), (*shape, 3)).reshape(-1, 3, 3)[::k]
+    err = _PredictedError(u, v, c, m, white, lo, hi, viewers)
+    search = _GridSearch(err, max(float(err.w.mean()), 1e-4))
+    if start is None:
+        alphas = np.arange(PREDICTED_ALPHA_MAX, PREDICTED_ALPHA_MIN - 1e-9, -0.1)
+        best = search.visit(np.round(alphas, 2), PREDICTED_BETAS)
+        search.visit(
+            np.round(np.arange(best.alpha + 0.06, best.alpha - 0.0601, -0.01), 2),
+            search.best_k + np.linspace(-0.03, 0.03, 13),
+        )
     else:
-        mk, ak, wk = (np.asarray(x, np.float64) for x in viewers)
-        nk = len(wk)
-        mk = np.broadcast_to(mk, (nk, *shape, 3)).reshape(nk, -1, 3, 3)[:, ::k]
-        ak = np.broadcast_to(ak, (nk, *shape)).reshape(nk, -1, 3)[:, ::k]
-        wk = wk / wk.sum()
+        # A local search: a 5 x 5 grid around the centre, moved to the best until it stays.
+        a0, k0 = float(start.alpha), round(float(start.beta) / search.scale, 6)
+        for _ in range(4):
+            best = search.visit(
+                np.round(a0 + np.array([0.0, 0.01, -0.01, 0.02, -0.02]), 2),
+                k0 + np.array([0.0, 0.004, -0.004, 0.008, -0.008]),
+            )
+            if (best.alpha, search.best_k) == (a0, k0):
+                break
+            a0, k0 = best.alpha, search.best_k
+    assert search.best is not None
+    return search.best
 
-    def errors(alpha: float, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        y = alpha * u + betas[:, None, None] * v + c
-        short = np.clip(y, lo_a, hi_a) - y
-        if viewers is None:  # M y + A = T exactly: what shows is T + M (clip(y) - y)
-            shown = alpha * w + betas[:, None, None] + np.einsum("nij,knj->kni", m, short)
-            err = np.mean(_delta_e94(_lab(shown), goal), axis=1)
+
+class _PredictedError:
+    """:func:`choose_predicted_tone_map`'s error of each (alpha, beta): its inputs flattened
+    to pixels and subsampled to at most about PREDICTED_PIXELS of them."""
+
+    def __init__(
+        self,
+        u: np.ndarray,
+        v: np.ndarray,
+        c: np.ndarray,
+        m: np.ndarray,
+        white: np.ndarray,
+        lo: np.ndarray | float,
+        hi: np.ndarray | float,
+        viewers: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    ) -> None:
+        shape = np.shape(u)
+        n = int(np.prod(shape[:-1]))
+        k = max(1, int(np.ceil(n / PREDICTED_PIXELS)))
+
+        def flat(x: np.ndarray) -> np.ndarray:
+            return np.broadcast_to(np.asarray(x, np.float64), shape).reshape(-1, 3)[::k]
+
+        self.u, self.v, self.c, self.w = flat(u), flat(v), flat(c), flat(white)
+        self.lo = np.broadcast_to(np.asarray(lo, np.float64), (3,))
+        self.hi = np.broadcast_to(np.asarray(hi, np.float64), (3,))
+        self.goal = _lab(self.w)
+        self.viewers = viewers
+        if viewers is None:
+            self.m = np.broadcast_to(np.asarray(m, np.float64), (*shape, 3)).reshape(-1, 3, 3)[::k]
+        else:
+            mk, ak, wk = (np.asarray(x, np.float64) for x in viewers)
+            nk = len(wk)
+            self.mk = np.broadcast_to(mk, (nk, *shape, 3)).reshape(nk, -1, 3, 3)[:, ::k]
+            self.ak = np.broadcast_to(ak, (nk, *shape)).reshape(nk, -1, 3)[:, ::k]
+            self.wk = wk / wk.sum()
+
+    def __call__(self, alpha: float, betas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(mean CIE94 error, fraction clipped) for ``alpha`` and each of ``betas``."""
+        y = alpha * self.u + betas[:, None, None] * self.v + self.c
+        short = np.clip(y, self.lo, self.hi) - y
+        if self.viewers is None:  # M y + A = T exactly: what shows is T + M (clip(y) - y)
+            shown = alpha * self.w + betas[:, None, None] + np.einsum("nij,knj->kni", self.m, short)
+            err = np.mean(_delta_e94(_lab(shown), self.goal), axis=1)
         else:
             err = np.zeros(len(betas))
-            for j in range(nk):
-                seen = np.einsum("nij,knj->kni", mk[j], y + short) + ak[j]
-                err += wk[j] * np.mean(_delta_e94(_lab(seen), goal), axis=1)
+            for j in range(len(self.wk)):
+                seen = np.einsum("nij,knj->kni", self.mk[j], y + short) + self.ak[j]
+                err += self.wk[j] * np.mean(_delta_e94(_lab(seen), self.goal), axis=1)
         return err, np.mean(short != 0.0, axis=(1, 2))
 
-    best: ToneMap | None = None
-    best_k = 0.0  # best.beta / scale, on the grids' rounded steps (0 stays exactly 0)
 
-    def visit(alphas: np.ndarray, ks: np.ndarray) -> None:
-        nonlocal best, best_k
+class _GridSearch:
+    """The best (alpha, beta) over the grids visited so far; beta = k * scale, k on the grids'
+    rounded steps (0 stays exactly 0)."""
+
+    def __init__(self, error: _PredictedError, scale: float) -> None:
+        self.error = error
+        self.scale = scale
+        self.best: ToneMap | None = None
+        self.best_k = 0.0
+
+    def visit(self, alphas: np.ndarray, ks: np.ndarray) -> ToneMap:
+        """Try every alpha (within the limits) with every k; returns the best so far."""
         ks = np.round(ks, 6)
         for alpha in alphas:
             if not PREDICTED_ALPHA_MIN - 1e-9 <= alpha <= PREDICTED_ALPHA_MAX + 1e-9:
                 continue
-            err, clipped = errors(float(alpha), ks * scale)
+            err, clipped = self.error(float(alpha), ks * self.scale)
             i = int(np.argmin(err))
-            if best is None or err[i] < best.cost - 1e-15:
-                best_k = float(ks[i])
-                best = ToneMap(float(alpha), best_k * scale, float(clipped[i]), float(err[i]))
-
-    if start is None:
-        alphas = np.arange(PREDICTED_ALPHA_MAX, PREDICTED_ALPHA_MIN - 1e-9, -0.1)
-        visit(np.round(alphas, 2), PREDICTED_BETAS)
-        assert best is not None
-        visit(
-            np.round(np.arange(best.alpha + 0.06, best.alpha - 0.0601, -0.01), 2),
-            best_k + np.linspace(-0.03, 0.03, 13),
-        )
-    else:
-        # A local search: a 5 x 5 grid around the centre, moved to the best until it stays.
-        a0, k0 = float(start.alpha), round(float(start.beta) / scale, 6)
-        for _ in range(4):
-            visit(
-                np.round(a0 + np.array([0.0, 0.01, -0.01, 0.02, -0.02]), 2),
-                k0 + np.array([0.0, 0.004, -0.004, 0.008, -0.008]),
-            )
-            assert best is not None
-            if (best.alpha, best_k) == (a0, k0):
-                break
-            a0, k0 = best.alpha, best_k
-    assert best is not None
-    return best
+            if self.best is None or err[i] < self.best.cost - 1e-15:
+                self.best_k = float(ks[i])
+                self.best = ToneMap(
+                    float(alpha), self.best_k * self.scale, float(clipped[i]), float(err[i])
+                )
+        assert self.best is not None
+        return self.best
 
 
 class ToneSmoother:

@@ -359,9 +359,12 @@ class EmulatedCamera:
             luts = self.projector.model.drive_luts(np.maximum(t0, a), np.minimum(t1, b))
             pieces.append((s.index, s.image, luts))
         integral = scene.integrate(self.screens[rec.screen], pieces, rec.exposure)
-        sig = integral * np.float32(self.profile.sensitivity)
+        sig = np.asarray(integral * np.float32(self.profile.sensitivity), np.float32)
         if self.profile.blur_px > 0:
-            sig = cv2.GaussianBlur(sig, (0, 0), self.profile.blur_px, borderType=cv2.BORDER_REFLECT)
+            sig = np.asarray(
+                cv2.GaussianBlur(sig, (0, 0), self.profile.blur_px, borderType=cv2.BORDER_REFLECT),
+                np.float32,
+            )
         self._signals[key] = sig
         while len(self._signals) > SIGNAL_CACHE:
             self._signals.popitem(last=False)
@@ -428,7 +431,10 @@ def mjpeg(rgb: np.ndarray, quality: int) -> np.ndarray:
     ok, buf = cv2.imencode(".jpg", rgb[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise DeviceError("the emulated webcam could not encode its frame as JPEG")
-    return np.ascontiguousarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)[:, :, ::-1])
+    decoded = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    if decoded is None:
+        raise DeviceError("the emulated webcam could not decode its own JPEG frame")
+    return np.ascontiguousarray(decoded[:, :, ::-1])
 
 
 def snap(value: float, rng: ControlRange) -> float:

@@ -168,7 +168,7 @@ class DlpModel:
         n = ov.shape[0]
         b = self.pwm_bits
         per_bit = np.zeros((n, 4, b))
-        np.add.at(per_bit, (slice(None), chans, bits), ov)
+        np.add.at(per_bit, (slice(None), chans, bits), ov)  # type: ignore[arg-type]
         code_bits = (self.codes[:, :, None] >> np.arange(b)) & 1  # (4, 256, B)
         lit = np.einsum("jib,njb->nji", code_bits.astype(np.float64), per_bit)
         seg_time = per_bit.sum(axis=2)  # (N, 4) the window's time in each channel's segments

@@ -150,11 +150,12 @@ def open_emulator(
     else:
         prof = profile
     base = rig or simulation_rig()
+    size = (int(projector_size[0]), int(projector_size[1]))
     base = replace(
         base,
-        projector=replace(base.projector, resolution=tuple(projector_size), principal_point=None),
+        projector=replace(base.projector, resolution=size, principal_point=None),
     )
-    scaled = scaled_camera_rig(base, tuple(projector_size))
+    scaled = scaled_camera_rig(base, size)
     sw, sh = scaled.camera.resolution
     if camera_size is None:
         k = prof.density / SIM_DENSITY
@@ -184,7 +185,7 @@ def open_emulator(
         )
     clock = VirtualClock()
     projector = EmulatedProjector(
-        clock, tuple(projector_size), model, np.random.default_rng([seed, 0xD1]), flt, latency
+        clock, size, model, np.random.default_rng([seed, 0xD1]), flt, latency
     )
     holder: list[Emulator] = []
     camera = EmulatedCamera(
@@ -215,7 +216,12 @@ def _bumped(rig: Rig, px: float) -> Rig:
         rig,
         camera=replace(
             cam,
-            position=tuple(float(v) for v in pos + d),
-            look_at=tuple(float(v) for v in np.asarray(cam.look_at) + d),
+            position=_point(pos + d),
+            look_at=_point(np.asarray(cam.look_at) + d),
         ),
     )
+
+
+def _point(v: np.ndarray) -> tuple[float, float, float]:
+    """A point (3,) as the rig's (x, y, z) floats."""
+    return (float(v[0]), float(v[1]), float(v[2]))

@@ -69,7 +69,11 @@ class SceneView:
         self.factor = int(factor)
         self.mixing = np.asarray(mixing, np.float32)
         self.white = self.mixing.sum(axis=1)  # camera channels of a white segment
-        linear = ProjectorPhysics(gamma=(1.0, 1.0, 1.0), leak=0.0, primaries=np.eye(3).tolist())
+        linear = ProjectorPhysics(
+            gamma=(1.0, 1.0, 1.0),
+            leak=0.0,
+            primaries=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+        )
         sim = Simulator(
             rig=supersampled_rig(rig, self.factor),
             projector=linear,
@@ -156,7 +160,8 @@ class SceneView:
                     drive[..., c] += flat[c][base + lv[..., c]]
                 if has_white:
                     white += flat[3][base + lv.min(axis=-1)]
-        light = cv2.transform(drive, self.mixing)  # camera channel i = sum_j mixing[i, j] d_j
+        # camera channel i = sum_j mixing[i, j] d_j
+        light = np.asarray(cv2.transform(drive, self.mixing), np.float32)
         if white is not None:
             light += white[..., None] * self.white
         total = r_term * light

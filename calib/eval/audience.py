@@ -40,7 +40,7 @@ from viewcomp.calib.eval.testimages import natural_images
 from viewcomp.calib.sim.simulator import white_screen
 from viewcomp.calib.world.audience import ZONE_VIEWERS, zone
 
-ZONES = ((60.0, 120.0), (30.0, 90.0))  # the issue's zone, and one whose centre is not 90
+ZONES = ((60.0, 120.0), (30.0, 90.0))  # the documented zone (README), and one off-centre
 JUDGE_VIEWERS = 13  # angles each zone is judged at
 ZONE_KEYS = ("pixel_90", "pixel_centre", "pixel_audience", "oracle")
 WALK_KEYS = ("tracked", "exact", "pixel_90")
@@ -152,7 +152,7 @@ def walk_rows(
         times, truth, tracked: (n,), (n, 3), (n, 3): the walk's times (s), true and tracked
             eyes (metres, the tracking camera's world).
         delay: frames between a camera frame and the first player frame that uses its eye
-            (3 at 30 fps: the 100 ms the issue allows).
+            (3 at 30 fps: 100 ms, the latency budget of a tracked viewer).
         every: judge every ``every``-th frame.
         screen, image: the screen (glossy) and the natural image.
 
@@ -166,7 +166,7 @@ def walk_rows(
     case = world.case(screen)
     scale = float(world.sim.rig.viewer.distance / np.mean(np.linalg.norm(truth, axis=1)))
     at90, _ = case.pixel.compensate_image(img, world.eye(90.0))
-    rows = []
+    rows: list[dict[str, Any]] = []
     for i in range(0, len(times), max(1, int(every))):
         late = tracked[max(0, i - int(delay))]
         eye, seen = truth[i] * scale, late * scale

@@ -47,7 +47,6 @@ from viewcomp.calib.sim.simulator import (
     simulation_rig,
     white_screen,
 )
-from viewcomp.calib.world.eye import eye_from_angle
 
 TABLE2_SCREENS = ("red", "green", "blue")
 TABLE2_IMAGES = ((100, 50, 50), (50, 100, 50), (50, 50, 100))
@@ -131,7 +130,7 @@ class World:
     def eye(self, angle: float) -> np.ndarray:
         """The eye at a viewing angle, at the rig's viewer distance and height."""
         v = self.sim.rig.viewer
-        return eye_from_angle(angle, v.distance, v.height)
+        return v.eye(angle)
 
     def case(self, name: str) -> Case:
         """Simulate, capture and calibrate one screen."""

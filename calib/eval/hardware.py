@@ -43,7 +43,6 @@ from viewcomp.calib.io.hdr import DEFAULT_STOPS
 from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.sim.simcamera import written_rig
 from viewcomp.calib.sim.simulate import projector_patterns
-from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import CaptureSpec
 
@@ -120,11 +119,10 @@ def seen_errors(
     (the per-pixel method of ``cal`` for that viewer) and ``original``, both against the
     white screen, seen through the emulator's physics."""
     truth = emu.truth
-    v = truth.rig.viewer
     comp = Compensation(cal, "pixel")
     out: dict[str, dict[str, float]] = {}
     for a in angles:
-        eye = eye_from_angle(float(a), v.distance, v.height)
+        eye = cal.eye(float(a))
         de: dict[str, list[float]] = {"compensated": [], "original": []}
         for image in images.values():
             ideal = _encode(truth.observe_linear("white", image, eye))

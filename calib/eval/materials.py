@@ -34,7 +34,8 @@ from viewcomp.calib.comp.tonemap import choose_predicted_tone_map
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
-from viewcomp.calib.fit.calibrate import Calibration, calibrate, finite_list
+from viewcomp.calib.fit.calibrate import Calibration, calibrate
+from viewcomp.calib.io.calibration_bundle import finite_list
 from viewcomp.calib.io.captureset import capture_set_from_raw
 from viewcomp.calib.io.hdr import DEFAULT_STOPS
 from viewcomp.calib.model.reference import tone_terms
@@ -49,7 +50,6 @@ from viewcomp.calib.sim.simulator import (
     simulation_rig,
     white_screen,
 )
-from viewcomp.calib.world.eye import eye_from_angle
 
 MATERIAL_ANGLES = (30, 45, 60, 75, 90, 105, 120, 135, 150)
 MATERIAL_SIZE = (320, 160)
@@ -213,12 +213,12 @@ def material_sweep(
     comps = {"pixel": Compensation(cal, "pixel")}
     if "paper" in cal.methods:
         comps["paper"] = Compensation(cal, "paper")
-    eye90 = eye_from_angle(90.0, v.distance, v.height)
+    eye90 = v.eye(90.0)
     rows = []
     for iname, image in imgs.items():
         at90 = {m: c.compensate_image(image, eye90)[0] for m, c in comps.items()}
         for a in angles:
-            eye = eye_from_angle(float(a), v.distance, v.height)
+            eye = v.eye(float(a))
             ideal = sim.observe(white_screen(), image, eye)
             shown = {"original": image}
             for m, c in comps.items():

@@ -81,8 +81,9 @@ def predict(
     ``eye`` or for ``compensate_for`` (another eye, or an audience: what one of its viewers
     sees of the audience's compensation)."""
     eye = np.asarray(eye, np.float64)
-    projected, params = comp.compensate_image(image, eye if compensate_for is None else
-                                              compensate_for)  # fmt: skip
+    projected, params = comp.compensate_image(
+        image, eye if compensate_for is None else compensate_for
+    )
     model = params.model
     if comp.method == "paper":  # the paper's model of the screen at this eye, no feedback
         plain = comp.paper_model(eye, np.ones(3))
@@ -93,8 +94,9 @@ def predict(
     white = encode8(cal, k * white_response(model, image))
     uncomp = encode8(cal, k * predict_view(plain, image, eye))
     comped = encode8(cal, k * predict_view(model, projected, eye))
-    return Preview(white, uncomp, comped, projected, delta_e2000(uncomp, white),
-                   delta_e2000(comped, white))  # fmt: skip
+    return Preview(
+        white, uncomp, comped, projected, delta_e2000(uncomp, white), delta_e2000(comped, white)
+    )
 
 
 def _font_scale(width: int, height: int) -> tuple[float, int]:

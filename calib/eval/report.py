@@ -64,12 +64,20 @@ def plot_phong(world: World, path: Path, screen: str = "magenta") -> dict[str, A
     for ch, ax in enumerate(axes):
         y = np.log(np.maximum(s[sel][ok][:, ch] / top[ch], 1e-6))
         ax.plot(x, y, ".", ms=1, alpha=0.3, color="0.4", label="s samples")
-        ax.plot(xs, np.log(power.ksis[ch]) + power.gamma[ch] * xs, "r-",
-                label=f"paper: power law (gamma {power.gamma[ch]:.1f})")  # fmt: skip
+        ax.plot(
+            xs,
+            np.log(power.ksis[ch]) + power.gamma[ch] * xs,
+            "r-",
+            label=f"paper: power law (gamma {power.gamma[ch]:.1f})",
+        )
         yl = lobe.baseline[ch] + lobe.at(g, g.camera)[sel][ok][:, ch]
         order = np.argsort(x)
-        ax.plot(x[order], np.log(np.maximum(yl[order], 1e-9) / top[ch]), "b-",
-                label=f"baseline + tabulated lobe ({lobe.param} angle)")  # fmt: skip
+        ax.plot(
+            x[order],
+            np.log(np.maximum(yl[order], 1e-9) / top[ch]),
+            "b-",
+            label=f"baseline + tabulated lobe ({lobe.param} angle)",
+        )
         ax.set_title(f"{screen} screen, channel {'RGB'[ch]}")
         ax.set_xlabel("log R.V")
         ax.legend(loc="lower right", fontsize=7)
@@ -127,8 +135,16 @@ def image_grid(keep: dict[str, Any], path: Path) -> None:
         tiles = []
         for c in cols:
             t = views[a][c].copy()
-            cv2.putText(t, f"{c} @{a:g}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
-                        (255, 255, 255), 2, cv2.LINE_AA)  # fmt: skip
+            cv2.putText(
+                t,
+                f"{c} @{a:g}",
+                (6, 20),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.55,
+                (255, 255, 255),
+                2,
+                cv2.LINE_AA,
+            )
             tiles.append(t)
         rows.append(np.concatenate(tiles, axis=1))
     grid = np.concatenate(rows, axis=0)
@@ -157,20 +173,28 @@ def plot_tradeoff(world: World, path: Path, screen: str = "magenta") -> list[dic
     cw = white_response(small, thumb).astype(np.float64)
     _, m_inv, amb = comp._screen(small, eye)
     u, v, c = tone_terms(m_inv, cw, amb)
-    out = []
+    out: list[dict[str, Any]] = []
     for lam in (0.03, 0.1, 0.3, 1.0, 3.0, 10.0):
         for mu in (0.0, 1.0):
             t = choose_tone_map(u, v, c, 0.0, 1.0, lam, beta_weight=mu, beta_scale=cw.mean())
-            out.append({"lambda": lam, "mu": mu, "alpha": t.alpha, "beta": t.beta,
-                        "clipped": t.clipped})  # fmt: skip
+            out.append(
+                {"lambda": lam, "mu": mu, "alpha": t.alpha, "beta": t.beta, "clipped": t.clipped}
+            )
     own = comp.tone_map(comp.base_model(), thumb, eye)
-    out.append({"rule": "predicted colour error", "alpha": own.alpha, "beta": own.beta,
-                "clipped": own.clipped})  # fmt: skip
+    out.append(
+        {
+            "rule": "predicted colour error",
+            "alpha": own.alpha,
+            "beta": own.beta,
+            "clipped": own.clipped,
+        }
+    )
     fig, ax = plt.subplots(figsize=(6, 4))
     for mu, st in ((0.0, "o--"), (1.0, "s-")):
         pts = [r for r in out if r.get("mu") == mu]
-        ax.plot([r["clipped"] for r in pts], [r["alpha"] for r in pts], st,
-                label=f"Eq. 22, mu = {mu:g}")  # fmt: skip
+        ax.plot(
+            [r["clipped"] for r in pts], [r["alpha"] for r in pts], st, label=f"Eq. 22, mu = {mu:g}"
+        )
         for r in pts:
             ax.annotate(f"λ={r['lambda']:g}", (r["clipped"], r["alpha"]), fontsize=7)
     ax.plot([own.clipped], [own.alpha], "k*", ms=12, label="per-pixel method's choice")
@@ -223,8 +247,14 @@ def write_report(out: Path, report: dict[str, Any], world: World, keep: dict[str
     if "table2" in report:
         md += ["## Table 2 protocol: sum of squared errors (Eq. 26), 8-bit units, x 10^6", ""]
         md += [_fmt_table2(report["table2"]), ""]
-        md += ["Criteria (counts of rows):", "", "```", json.dumps(report["table2_checks"],
-               indent=1), "```", ""]  # fmt: skip
+        md += [
+            "Criteria (counts of rows):",
+            "",
+            "```",
+            json.dumps(report["table2_checks"], indent=1),
+            "```",
+            "",
+        ]
         md += [
             "Share of the gap between paper_90 and the oracle closed (SSE, mean over rows): "
             + json.dumps({k: round(v, 3) for k, v in report["table2_gap_closed_sse"].items()}),
@@ -242,11 +272,23 @@ def write_report(out: Path, report: dict[str, Any], world: World, keep: dict[str
         ]
         if keep.get("views"):
             image_grid(keep, out / "grid.png")
-            md += [f"Before/after ({keep['screen']} screen, image {keep['image']}):", "",
-                   "![](grid.png)", ""]  # fmt: skip
+            md += [
+                f"Before/after ({keep['screen']} screen, image {keep['image']}):",
+                "",
+                "![](grid.png)",
+                "",
+            ]
     report["phong_fit"] = plot_phong(world, out / "phong_fit.png")
-    md += ["## The specular fit", "", "![](phong_fit.png)", "", "```",
-           json.dumps(report["phong_fit"], indent=1), "```", ""]  # fmt: skip
+    md += [
+        "## The specular fit",
+        "",
+        "![](phong_fit.png)",
+        "",
+        "```",
+        json.dumps(report["phong_fit"], indent=1),
+        "```",
+        "",
+    ]
     report["tone_tradeoff"] = plot_tradeoff(world, out / "tonemap_tradeoff.png")
     md += ["## Tone map trade-off", "", "![](tonemap_tradeoff.png)", ""]
     md += [f"Run time: {report['seconds']} s.", ""]
@@ -300,14 +342,25 @@ def write_materials_report(out: Path, report: dict[str, Any]) -> None:
         summ = e.get("summary")
         if not summ:
             continue
-        md.append(f"- {e['material']} ({e['capture']}): " + "; ".join(
-            f"{a}: {m['pixel_90']:.2f} / {m['pixel_theta']:.2f} / {m['oracle']:.2f}"
-            + (f"; {m['paper_90']:.2f} / {m['paper_theta']:.2f}" if "paper_90" in m else "")
-            for a, m in summ["mean_de"].items()
-        ))  # fmt: skip
-    md += ["", "Criteria over the glossy materials (peak >= 10 x diffuse):", "", "```",
-           json.dumps(report["materials_checks"], indent=1), "```", "",
-           f"Run time: {report['seconds']} s.", ""]  # fmt: skip
+        md.append(
+            f"- {e['material']} ({e['capture']}): "
+            + "; ".join(
+                f"{a}: {m['pixel_90']:.2f} / {m['pixel_theta']:.2f} / {m['oracle']:.2f}"
+                + (f"; {m['paper_90']:.2f} / {m['paper_theta']:.2f}" if "paper_90" in m else "")
+                for a, m in summ["mean_de"].items()
+            )
+        )
+    md += [
+        "",
+        "Criteria over the glossy materials (peak >= 10 x diffuse):",
+        "",
+        "```",
+        json.dumps(report["materials_checks"], indent=1),
+        "```",
+        "",
+        f"Run time: {report['seconds']} s.",
+        "",
+    ]
     write_report_files(out, report, md)
 
 
@@ -334,10 +387,21 @@ def write_audience_report(out: Path, report: dict[str, Any]) -> None:
                 f"| {name} | {what} | {m['pixel_90']:.2f} | {m['pixel_centre']:.2f} | "
                 f"{m['pixel_audience']:.2f} | {m['oracle']:.2f} |"
             )
-    md += ["", "Criteria (rows where they hold, of all rows; and on the means):", "", "```",
-           json.dumps({k: {c: v for c, v in z.items() if c not in ("mean", "worst")}
-                       for k, z in report["zone_summary"].items()}, indent=1),
-           "```", ""]  # fmt: skip
+    md += [
+        "",
+        "Criteria (rows where they hold, of all rows; and on the means):",
+        "",
+        "```",
+        json.dumps(
+            {
+                k: {c: v for c, v in z.items() if c not in ("mean", "worst")}
+                for k, z in report["zone_summary"].items()
+            },
+            indent=1,
+        ),
+        "```",
+        "",
+    ]
     walk = report.get("walk")
     if walk:
         s = walk["summary"]

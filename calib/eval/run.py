@@ -69,8 +69,9 @@ def _run_materials(
             "folder": str(folder),
         }
     }
-    report |= materials_protocol(folder, seed=seed, size=size or MATERIAL_SIZE, angles=angles,
-                                 progress=progress)  # fmt: skip
+    report |= materials_protocol(
+        folder, seed=seed, size=size or MATERIAL_SIZE, angles=angles, progress=progress
+    )
     return _finish(out_dir, report, t0, write_materials_report)
 
 

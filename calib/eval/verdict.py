@@ -97,12 +97,8 @@ class Verdict:
         }
 
 
-def judge(cal: Calibration) -> Verdict:
-    """The verdict on ``cal`` from its ``info["quality"]`` (exposure, noise, ramp residual:
-    :func:`~viewcomp.calib.fit.quality.capture_quality`), its clipped pixels, the per-pixel
-    lobe's residual against the noise, the camera-space geometry's statistics when present,
-    and the paper's fit. A bundle written before these were measured is judged on what it
-    has."""
+def _capture_findings(cal: Calibration) -> list[Finding]:
+    """Exposure, noise, fit against noise, ramp residual and clipping."""
     info = cal.info
     q = info.get("quality", {})
     h, w = cal.pixel.geometry.refl.shape[:2]
@@ -146,7 +142,12 @@ def judge(cal: Calibration) -> Verdict:
         "fraction of the pixels clipped in some capture (left out of the fits)",
         "capture with --hdr (or lower the exposure) so the highlight is measured",
     ))  # fmt: skip
-    geo = info.get("geometry") or {}
+    return found
+
+
+def _geometry_findings(geo: dict[str, Any]) -> list[Finding]:
+    """Camera space: coverage, Gray-code decoding and the map against the chessboard."""
+    found: list[Finding] = []
     gc = geo.get("graycode") or {}
     ph = geo.get("phase") or {}
     decoded = [v for v in (gc.get("decoded_fraction_of_lit"),
@@ -172,6 +173,16 @@ def judge(cal: Calibration) -> Verdict:
             "camera px RMS between the Gray-code map and the chessboard's corners",
             "fix the camera firmly (it moved or vibrated) and capture again",
         ))  # fmt: skip
+    return found
+
+
+def judge(cal: Calibration) -> Verdict:
+    """The verdict on ``cal`` from its ``info["quality"]`` (exposure, noise, ramp residual:
+    :func:`~viewcomp.calib.fit.quality.capture_quality`), its clipped pixels, the per-pixel
+    lobe's residual against the noise, the camera-space geometry's statistics when present,
+    and the paper's fit. A bundle written before these were measured is judged on what it
+    has."""
+    found = _capture_findings(cal) + _geometry_findings(cal.info.get("geometry") or {})
     paper_level = None
     if cal.paper is not None:
         r2 = float(np.min(cal.paper.fit.r2))

@@ -11,10 +11,8 @@ atomic).
 
 from __future__ import annotations
 
-import itertools
 import time
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,24 +20,20 @@ from typing import Any
 import numpy as np
 
 from viewcomp.calib.errors import FitError
-from viewcomp.calib.fit.paper import CHANNEL_PATTERNS, PaperCalibration, PhongFit, calibrate_paper
+from viewcomp.calib.fit.paper import PaperCalibration, calibrate_paper
 from viewcomp.calib.fit.pixel import (
     DEFAULT_SMOOTH_PX,
-    LobeFit,
     PixelCalibration,
-    ScreenModel,
     calibrate_pixel,
 )
 from viewcomp.calib.fit.quality import capture_quality, ramp_residual
-from viewcomp.calib.hw.mono import MONO_REFUSAL, is_mono_set
-from viewcomp.calib.io.bundle import CALIBRATION_ARRAYS, BundleError, load_bundle, save_bundle
+from viewcomp.calib.io.bundle import BundleError
+from viewcomp.calib.io.calibration_bundle import load_calibration, save_calibration
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
-from viewcomp.calib.io.checks import check_captures
-from viewcomp.calib.io.compact import decode_screen, encode_screen
-from viewcomp.calib.model.lobe import LOBE_N, LOBE_PARAMS
-from viewcomp.calib.world.eye import EyeError, check_angle, check_eye
+from viewcomp.calib.io.checks import MONO_REFUSAL, check_captures, is_mono_set
+from viewcomp.calib.world.eye import ErrorClass, EyeError, check_angle, check_eye
 from viewcomp.calib.world.geometry import ScreenGeometry
-from viewcomp.calib.world.rig import Rig, rig_from_dict, rig_to_toml
+from viewcomp.calib.world.rig import Rig
 
 
 @dataclass
@@ -74,75 +68,28 @@ class Calibration:
                 f"fit ({why}); use --method pixel, or recalibrate with captures it can fit"
             )
 
-    def eye(self, angle: float | None = None, eye: np.ndarray | None = None) -> np.ndarray:
+    def eye(
+        self,
+        angle: float | None = None,
+        eye: Sequence[float] | np.ndarray | None = None,
+        error: ErrorClass = EyeError,
+    ) -> np.ndarray:
         """An eye position from an angle (the rig's viewer distance and height) or as given,
-        both checked against the limits of :mod:`viewcomp.calib.world.eye` (EyeError)."""
+        both checked against the limits of :mod:`viewcomp.calib.world.eye` (``error``,
+        EyeError unless the caller names its own)."""
         if eye is not None:
-            return check_eye(eye)
+            return check_eye(eye, error=error)
         if angle is None:
-            raise EyeError("give a viewing angle or an eye position")
-        angle = check_angle(angle)
+            raise error("give a viewing angle or an eye position")
+        angle = check_angle(angle, error=error)
         return self.rig.viewer.eye(angle)
 
     # -- the bundle ------------------------------------------------------------------------
 
     def save(self, path: str | Path) -> None:
-        """Write the bundle atomically at exactly ``path``."""
-        p, x = self.paper, self.pixel
-        g = x.geometry
-        lobe = x.lobe
-        # The per-pixel maps compact (viewcomp.calib.io.compact: error-bounded integers);
-        # the geometry not at all: the rig in meta gives it back exactly (from_rig).
-        arrays = {
-            "pixel.f_lut": x.f_lut,
-            "pixel.lobe": lobe.table,
-            "pixel.baseline": lobe.baseline,
-            "pixel.black_share": x.black_share,
-        }
-        meta: dict[str, Any] = {
-            "rig": rig_to_toml(self.rig),
-            "methods": list(self.methods),
-            "geometry": {"projector": g.projector.tolist(), "camera": g.camera.tolist()},
-            "pixel_fit": {
-                "lobe_param": lobe.param,
-                "t_seen": list(lobe.t_seen),
-                "rms": lobe.rms.tolist(),
-                "rms_other": lobe.rms_other.tolist(),
-                "rms_phong": finite_list(lobe.rms_phong),
-                "rms_power_law": finite_list(lobe.rms_power_law),
-                "peak": lobe.peak.tolist(),
-                "samples": lobe.samples,
-                "masked": lobe.masked,
-                "message": lobe.message,
-                "response_rms": x.response_rms,
-                "ambient_measured": x.screen.ambient_measured,
-            },
-            "info": self.info,
-        }
-        if p is not None:
-            arrays |= {
-                "paper.n": p.n,
-                "paper.means_c": np.stack([p.means_c[k] for k in (*CHANNEL_PATTERNS, "gray")]),
-                "paper.ramp_cols_c": p.ramp_cols_c,
-                "paper.w_tilde_w": p.w_tilde_w,
-                "paper.rho_w": p.rho_w,
-                "paper.ksis": p.fit.ksis,
-                "paper.gamma": p.fit.gamma,
-                "paper.stat_mask": p.stat_mask.astype(np.uint8),
-            }
-            meta["paper_fit"] = {
-                "mode": p.fit.mode,
-                "samples": p.fit.samples,
-                "rms_log": p.fit.rms.tolist(),
-                "r2": p.fit.r2.tolist(),
-            }
-        # The maps last, encoded one array at a time as the bundle is written.
-        pairs = itertools.chain(
-            arrays.items(),
-            encode_screen("w", x.white.W, x.white.A),
-            encode_screen("c", x.screen.W, x.screen.A),
-        )
-        save_bundle(path, pairs, meta)
+        """Write the bundle atomically at exactly ``path``
+        (:mod:`viewcomp.calib.io.calibration_bundle` has its layout)."""
+        save_calibration(path, self.rig, self.paper, self.pixel, self.info)
 
     @classmethod
     def load(cls, path: str | Path) -> Calibration:
@@ -151,91 +98,8 @@ class Calibration:
         Raises:
             BundleError: unreadable, corrupt, of another schema, or missing a part.
         """
-        arrays, meta = load_bundle(path, CALIBRATION_ARRAYS)
-        try:
-            rig = rig_from_dict(_toml_loads(meta["rig"]), source=f"{path} (rig)")
-            # The geometry calibrate used, computed again from the same rig (exactly).
-            # The two screens' maps decode on a second thread meanwhile (numpy's work there
-            # releases the GIL): the load is on the player's start-up path.
-            with ThreadPoolExecutor(max_workers=2) as pool:
-                white = pool.submit(decode_screen, arrays, "w")
-                screen = pool.submit(decode_screen, arrays, "c")
-                g = ScreenGeometry.from_rig(rig)
-                (white_w, white_a), (screen_w, screen_a) = white.result(), screen.result()
-            for device in ("projector", "camera"):
-                listed = np.asarray(meta["geometry"][device], np.float64)
-                if listed.shape != (3,) or not np.array_equal(listed, getattr(g, device)):
-                    raise ValueError(f"the {device} is at {listed}, its rig says otherwise")
-            for name, m in (("Ww", white_w), ("Aw", white_a), ("Wc", screen_w), ("Ac", screen_a)):
-                if m.shape[:2] != g.pos.shape[:2] or not np.all(np.isfinite(m)):
-                    raise ValueError(f"pixel.{name} decodes to {m.shape} or to non-finite values")
-            paper = None
-            if "paper" in meta["methods"]:
-                pf = meta["paper_fit"]
-                fit = PhongFit(
-                    ksis=arrays["paper.ksis"],
-                    gamma=arrays["paper.gamma"],
-                    rms=np.asarray(pf["rms_log"]),
-                    r2=np.asarray(pf["r2"]),
-                    samples=int(pf["samples"]),
-                    mode=str(pf["mode"]),
-                )
-                means = arrays["paper.means_c"]
-                paper = PaperCalibration(
-                    geometry=g,
-                    n=arrays["paper.n"],
-                    fit=fit,
-                    means_c={k: means[i] for i, k in enumerate((*CHANNEL_PATTERNS, "gray"))},
-                    ramp_cols_c=arrays["paper.ramp_cols_c"],
-                    w_tilde_w=arrays["paper.w_tilde_w"],
-                    rho_w=arrays["paper.rho_w"],
-                    rv90=g.rv(g.camera),
-                    stat_mask=arrays["paper.stat_mask"].astype(bool),
-                )
-            xf = meta["pixel_fit"]
-            lobe = LobeFit(
-                param=str(xf["lobe_param"]),
-                table=arrays["pixel.lobe"],
-                baseline=arrays["pixel.baseline"],
-                t_seen=(float(xf["t_seen"][0]), float(xf["t_seen"][1])),
-                rms=np.asarray(xf["rms"], np.float64),
-                rms_other=np.asarray(xf["rms_other"], np.float64),
-                rms_phong=np.asarray(xf["rms_phong"], np.float64),
-                rms_power_law=np.asarray(xf["rms_power_law"], np.float64),
-                peak=np.asarray(xf["peak"], np.float64),
-                samples=int(xf["samples"]),
-                masked=int(xf["masked"]),
-                message=str(xf["message"]),
-            )
-            if lobe.param not in LOBE_PARAMS or lobe.table.shape != (LOBE_N, 3):
-                raise ValueError(f"lobe {lobe.param!r} of shape {lobe.table.shape}")
-            measured = bool(xf["ambient_measured"])
-            pixel = PixelCalibration(
-                geometry=g,
-                f_lut=arrays["pixel.f_lut"],
-                white=ScreenModel(white_w, white_a, measured),
-                screen=ScreenModel(screen_w, screen_a, measured),
-                lobe=lobe,
-                response_rms=float(xf["response_rms"]),
-                black_share=arrays["pixel.black_share"],
-            )
-        except (KeyError, TypeError, ValueError) as e:
-            raise BundleError(
-                f"{path}: the bundle is incomplete or inconsistent ({e!r}): recalibrate with "
-                "`viewcomp calibrate CAPTURE_DIR -o CALIB`"
-            ) from e
-        return cls(rig=rig, paper=paper, pixel=pixel, info=dict(meta.get("info", {})))
-
-
-def finite_list(a: np.ndarray) -> list[float | None]:
-    """JSON-safe floats: NaN (a comparison fit that could not run) as None (null)."""
-    return [float(v) if np.isfinite(v) else None for v in np.asarray(a, np.float64)]
-
-
-def _toml_loads(text: str) -> dict[str, Any]:
-    import tomllib
-
-    return tomllib.loads(text)
+        rig, paper, pixel, info = load_calibration(path)
+        return cls(rig=rig, paper=paper, pixel=pixel, info=info)
 
 
 def calibrate(

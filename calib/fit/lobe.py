@@ -209,6 +209,7 @@ def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         )
         if best is None or r.cost < best.cost:
             best = r
+    assert best is not None  # the loop above runs at least once
     rms = np.sqrt(np.mean((model(best.x) - y) ** 2, axis=0))
     design = np.stack([np.ones_like(lx), lx], axis=1)
     pl = np.empty(3)
@@ -216,6 +217,19 @@ def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         coef, *_ = np.linalg.lstsq(design, np.log(np.maximum(y[:, ch], 1e-9)), rcond=None)
         pl[ch] = np.sqrt(np.mean((np.exp(design @ coef) - y[:, ch]) ** 2))
     return rms, pl
+
+
+def _fit_param(
+    geometry: ScreenGeometry, name: str, step: int, ok: np.ndarray, y: np.ndarray, sub: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float], np.ndarray]:
+    """The lobe tabulated over one parametrisation (``name``: "half" or "mirror") of the
+    camera's view: (table, baseline, angles seen, rms (3,) on the samples ``sub``)."""
+    t = lobe_position(geometry.refl, geometry.pos, geometry.camera, name == "half", np.float64)
+    t = t[::step, ::step][ok]
+    table, base, seen = _table(t, y)
+    pred = base + lobe_lookup(table, t[sub])
+    rms = np.sqrt(np.mean((pred - y[sub]) ** 2, axis=0))
+    return table, base, seen, rms
 
 
 def fit_lobe(
@@ -266,14 +280,7 @@ def fit_lobe(
     rv = geometry.rv(cam)[::step, ::step][ok]
     pos = np.flatnonzero(rv > 0)
     sub = pos[:: max(1, pos.size // 20000)] if pos.size >= 20 else np.arange(y.shape[0])
-    fits = {}
-    for name in LOBE_PARAMS:
-        t = lobe_position(geometry.refl, geometry.pos, cam, name == "half", np.float64)
-        t = t[::step, ::step][ok]
-        table, base, seen = _table(t, y)
-        pred = base + lobe_lookup(table, t[sub])
-        rms = np.sqrt(np.mean((pred - y[sub]) ** 2, axis=0))
-        fits[name] = (table, base, seen, rms)
+    fits = {name: _fit_param(geometry, name, step, ok, y, sub) for name in LOBE_PARAMS}
     chosen = param or min(LOBE_PARAMS, key=lambda k: float(np.mean(fits[k][3])))
     other = next(k for k in LOBE_PARAMS if k != chosen)
     table, base, seen, rms = fits[chosen]

@@ -111,7 +111,7 @@ def gray_code_suffices(gc: GrayCode) -> bool:
     pixels and the phase is needed (tests/test_phaseshift.py).
     """
     decoded = np.count_nonzero(gc.column >= 0) / max(int(np.count_nonzero(gc.lit)), 1)
-    return bool(gc.resolved().all()) and decoded >= GRAY_SUFFICES
+    return bool(gc.resolved().all() and decoded >= GRAY_SUFFICES)
 
 
 def calibrate_geometry(cs: CaptureSet) -> Geometry:
@@ -186,7 +186,9 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
     stats["max_frame_shift_px"] = round(mover.worst, 4)
     pred, region, h_cb = predict_from_chessboard(corners, k, dist, shape)
     sub = gc.subpixel is not None  # the phase's positions are the map's
-    agreement = check_planes(gc, screen, pred, region, phase.planes if sub else None)
+    agreement = check_planes(
+        gc, screen, pred, region, phase.planes if sub and phase is not None else None
+    )
     check_coverage(gc, size, screen.rel(gc.names[0]))
     ok = gc.column >= 0
     lit_frac = float(ok.sum()) / max(int(gc.lit.sum()), 1)

@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from viewcomp.calib.io.imageio import CaptureError
+from viewcomp.calib.errors import DeviceError, FrameError  # noqa: F401 (re-exported)
 
 #: Control name -> unit. Backends report and take values in these units.
 CONTROLS: dict[str, str] = {
@@ -39,15 +39,6 @@ CONTROLS: dict[str, str] = {
     "auto_white_balance": "0/1",
     "autofocus": "0/1",
 }
-
-
-class DeviceError(CaptureError):
-    """A projector or camera that cannot be opened or used; the message says what to do."""
-
-
-class FrameError(DeviceError):
-    """One failed read (a dropped USB transfer, a timeout): the device itself is still usable,
-    so the procedure may try again."""
 
 
 @dataclass(frozen=True)

@@ -234,6 +234,7 @@ def run_capture(
                 progress.start()
         rel = f"{step.sub}/{step.name}"
         image, clipped = session.take(step.pattern, rel)
+        assert checks is not None  # the plan's first step opened its stage, which made them
         if clipped is None:
             checks.check(step.sub, step.name, image)
         else:

@@ -157,8 +157,9 @@ class SimulatedRig:
 
         rig = self.sim.rig
         d = np.asarray(offset, np.float64)
-        pos = tuple(float(v) for v in np.asarray(rig.camera.position) + d)
-        look = tuple(float(v) for v in np.asarray(rig.camera.look_at) + d)
+        px, py, pz = (float(v) for v in np.asarray(rig.camera.position) + d)
+        lx, ly, lz = (float(v) for v in np.asarray(rig.camera.look_at) + d)
+        pos, look = (px, py, pz), (lx, ly, lz)
         self.sim = self.sim.with_rig(
             replace(rig, camera=replace(rig.camera, position=pos, look_at=look))
         )

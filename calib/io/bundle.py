@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import BundleError
 from viewcomp.calib.io import npy
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.npy import MAX_ARRAY_BYTES
@@ -55,10 +55,6 @@ _ZIP_ERRORS = (
     OverflowError,
     UnicodeDecodeError,
 )
-
-
-class BundleError(ViewcompError, ValueError):
-    """A calibration bundle that cannot be used; the message names file, cause and fix."""
 
 
 def save_bundle(
@@ -255,6 +251,41 @@ def load_bundle(
     Raises :class:`BundleError` naming the file, the cause and the fix.
     """
     p = Path(path)
+    _check_container(p)
+    rules = rules or {}
+    current = "the zip directory"
+    try:
+        with zipfile.ZipFile(p, "r") as zf:
+            by_name = _members(p, zf)
+            current = META_MEMBER
+            listing, user_meta, specs = _listing(p, zf, by_name)
+            _check_listing(p, by_name, listing, user_meta, specs, rules)
+            arrays: dict[str, np.ndarray] = {}
+
+            def read(name: str) -> np.ndarray:
+                dtype, shape, _ = specs[name]
+                a = _read_member(p, zf, by_name[f"{name}.npy"], listing[name], dtype, shape)
+                _check_values(p, name, a, rules.get(name))
+                return a
+
+            # Two members at a time: zlib inflates and numpy checks with the GIL released, so
+            # a second core halves the wait (zipfile serialises the file reads themselves).
+            with ThreadPoolExecutor(max_workers=2) as pool:
+                futures = {name: pool.submit(read, name) for name in specs}
+                for name, future in futures.items():
+                    current = f"{name}.npy"
+                    arrays[name] = future.result()
+    except BundleError:
+        raise
+    except _ZIP_ERRORS as exc:
+        raise _fail(
+            p, f"damaged: cannot read {current} ({exc})", f"copy the file again, or {_RECALIBRATE}"
+        ) from None
+    return arrays, user_meta
+
+
+def _check_container(p: Path) -> None:
+    """A readable file that is a zip (with its directory): else BundleError saying which."""
     if not p.exists() and not p.is_symlink():
         raise _fail(
             p, "not found", f"give the file written by `viewcomp calibrate`, or {_RECALIBRATE}"
@@ -280,91 +311,89 @@ def load_bundle(
             fix = "give the file written by `viewcomp calibrate`"
         raise _fail(p, cause, fix)
 
-    current = "the zip directory"
-    try:
-        with zipfile.ZipFile(p, "r") as zf:
-            infos = zf.infolist()
-            if len(infos) > MAX_MEMBERS:
-                raise _fail(p, f"{len(infos)} members, more than a bundle has", _RECALIBRATE)
-            by_name = {i.filename: i for i in infos}
-            if len(by_name) != len(infos):
-                raise _fail(p, "a member name appears twice", _RECALIBRATE)
-            if META_MEMBER not in by_name:
-                raise _fail(
-                    p,
-                    f"no {META_MEMBER} inside, so not a viewcomp calibration bundle",
-                    "give the file written by `viewcomp calibrate`",
-                )
-            current = META_MEMBER
-            meta_info = by_name[META_MEMBER]
-            if meta_info.file_size > MAX_META_BYTES:
-                raise _fail(
-                    p,
-                    f"{META_MEMBER} declares {meta_info.file_size} bytes, over the "
-                    f"{MAX_META_BYTES >> 20} MiB a bundle's meta.json can be",
-                    _RECALIBRATE,
-                )
-            doc = _parse_meta(p, zf.read(meta_info))
-            listing, user_meta = doc["arrays"], doc["meta"]
-            specs = {name: _listed_spec(p, name, spec) for name, spec in listing.items()}
-            total = sum(s[2] for s in specs.values())
-            if total > MAX_BUNDLE_BYTES:
-                raise _fail(
-                    p,
-                    f"{META_MEMBER} lists {total / 2**30:.1f} GiB of arrays, over the "
-                    f"{MAX_BUNDLE_BYTES / 2**30:g} GiB limit",
-                    _RECALIBRATE,
-                )
-            rules = rules or {}
-            if any(name in rules for name in specs):
-                dims = _grid(p, user_meta)
-                for name, (dtype, shape, _) in specs.items():
-                    if name in rules:
-                        _check_rule(p, name, dtype, shape, rules[name], dims)
-            expected = {f"{name}.npy" for name in listing} | {META_MEMBER}
-            unlisted = sorted(set(by_name) - expected)
-            if unlisted:
-                raise _fail(
-                    p, f"members not listed in {META_MEMBER}: {', '.join(unlisted)}", _RECALIBRATE
-                )
-            for name, (_, _, nbytes) in specs.items():
-                member = f"{name}.npy"
-                if member not in by_name:
-                    raise _fail(
-                        p,
-                        f"array {name!r} is listed in {META_MEMBER} but {member} is missing",
-                        _RECALIBRATE,
-                    )
-                info = by_name[member]
-                if info.file_size > nbytes + _MAX_NPY_HEADER:
-                    raise _fail(
-                        p,
-                        f"member {member} declares {info.file_size} bytes, but {META_MEMBER} "
-                        f"lists {listing[name]} ({nbytes} bytes)",
-                        _RECALIBRATE,
-                    )
-            arrays: dict[str, np.ndarray] = {}
 
-            def read(name: str) -> np.ndarray:
-                dtype, shape, _ = specs[name]
-                a = _read_member(p, zf, by_name[f"{name}.npy"], listing[name], dtype, shape)
-                _check_values(p, name, a, rules.get(name))
-                return a
-
-            # Two members at a time: zlib inflates and numpy checks with the GIL released, so
-            # a second core halves the wait (zipfile serialises the file reads themselves).
-            with ThreadPoolExecutor(max_workers=2) as pool:
-                futures = {name: pool.submit(read, name) for name in specs}
-                for name, future in futures.items():
-                    current = f"{name}.npy"
-                    arrays[name] = future.result()
-    except BundleError:
-        raise
-    except _ZIP_ERRORS as exc:
+def _members(p: Path, zf: zipfile.ZipFile) -> dict[str, zipfile.ZipInfo]:
+    """The zip's members by name: few enough, each name once, meta.json among them."""
+    infos = zf.infolist()
+    if len(infos) > MAX_MEMBERS:
+        raise _fail(p, f"{len(infos)} members, more than a bundle has", _RECALIBRATE)
+    by_name = {i.filename: i for i in infos}
+    if len(by_name) != len(infos):
+        raise _fail(p, "a member name appears twice", _RECALIBRATE)
+    if META_MEMBER not in by_name:
         raise _fail(
-            p, f"damaged: cannot read {current} ({exc})", f"copy the file again, or {_RECALIBRATE}"
-        ) from None
-    return arrays, user_meta
+            p,
+            f"no {META_MEMBER} inside, so not a viewcomp calibration bundle",
+            "give the file written by `viewcomp calibrate`",
+        )
+    return by_name
+
+
+Spec = tuple[np.dtype[Any], tuple[int, ...], int]  # dtype, shape, bytes of a listed array
+
+
+def _listing(
+    p: Path, zf: zipfile.ZipFile, by_name: dict[str, zipfile.ZipInfo]
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Spec]]:
+    """meta.json (its size capped before it is read): the arrays' listing, the caller's meta
+    and each listed array's (dtype, shape, bytes), their total capped."""
+    meta_info = by_name[META_MEMBER]
+    if meta_info.file_size > MAX_META_BYTES:
+        raise _fail(
+            p,
+            f"{META_MEMBER} declares {meta_info.file_size} bytes, over the "
+            f"{MAX_META_BYTES >> 20} MiB a bundle's meta.json can be",
+            _RECALIBRATE,
+        )
+    doc = _parse_meta(p, zf.read(meta_info))
+    listing, user_meta = doc["arrays"], doc["meta"]
+    specs = {name: _listed_spec(p, name, spec) for name, spec in listing.items()}
+    total = sum(s[2] for s in specs.values())
+    if total > MAX_BUNDLE_BYTES:
+        raise _fail(
+            p,
+            f"{META_MEMBER} lists {total / 2**30:.1f} GiB of arrays, over the "
+            f"{MAX_BUNDLE_BYTES / 2**30:g} GiB limit",
+            _RECALIBRATE,
+        )
+    return listing, user_meta, specs
+
+
+def _check_listing(
+    p: Path,
+    by_name: dict[str, zipfile.ZipInfo],
+    listing: dict[str, Any],
+    user_meta: dict[str, Any],
+    specs: dict[str, Spec],
+    rules: dict[str, ArrayRule],
+) -> None:
+    """Each listed array against ``rules`` (shapes from the bundle's grid), every member
+    listed, every listed array present with no more bytes than its listing says."""
+    if any(name in rules for name in specs):
+        dims = _grid(p, user_meta)
+        for name, (dtype, shape, _) in specs.items():
+            if name in rules:
+                _check_rule(p, name, dtype, shape, rules[name], dims)
+    expected = {f"{name}.npy" for name in listing} | {META_MEMBER}
+    unlisted = sorted(set(by_name) - expected)
+    if unlisted:
+        raise _fail(p, f"members not listed in {META_MEMBER}: {', '.join(unlisted)}", _RECALIBRATE)
+    for name, (_, _, nbytes) in specs.items():
+        member = f"{name}.npy"
+        if member not in by_name:
+            raise _fail(
+                p,
+                f"array {name!r} is listed in {META_MEMBER} but {member} is missing",
+                _RECALIBRATE,
+            )
+        info = by_name[member]
+        if info.file_size > nbytes + _MAX_NPY_HEADER:
+            raise _fail(
+                p,
+                f"member {member} declares {info.file_size} bytes, but {META_MEMBER} "
+                f"lists {listing[name]} ({nbytes} bytes)",
+                _RECALIBRATE,
+            )
 
 
 def _parse_meta(p: Path, data: bytes) -> dict[str, Any]:

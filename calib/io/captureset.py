@@ -149,28 +149,9 @@ def _same_size(
     return first
 
 
-def read_capture_set(directory: str | Path) -> CaptureSet:
-    """Read and validate a capture-set folder.
-
-    Checks: rig.toml present and valid; every REQUIRED image in both white/ and screen/;
-    ``black`` in both or in neither; one size for all images, equal to the projector's
-    resolution for space = "projector" (the camera's for space = "camera"). Raises
-    :class:`CaptureError` (or :class:`~viewcomp.calib.world.rig.RigError`) naming the file and fix.
-    """
-    root = Path(directory)
-    problem = path_problem(root)
-    if problem is None and not root.is_dir():
-        problem = "is a file, not a folder"
-    if problem is not None:
-        what = f"not found: capture set folder {root}" if problem == "not found" else (
-            f"capture set folder {root}: {problem}")  # fmt: skip
-        raise CaptureError(f"{what} - give the folder written by {_FIX}")
-    rig_file = root / RIG_FILE
-    if (problem := path_problem(rig_file)) is not None:
-        raise CaptureError(f"{problem}: {RIG_FILE} in {root} - the capture set needs it; {_FIX}")
-    check_input_file(rig_file, "the rig file", f"a {RIG_FILE} text file", CaptureError)
-    rig = load_rig(rig_file)
-
+def _find_files(root: Path) -> dict[tuple[str, str], Path]:
+    """(sub-folder, pattern) -> image file: every REQUIRED one in both sub-folders, each
+    OPTIONAL one in both or in neither; else CaptureError naming what is missing."""
     files: dict[tuple[str, str], Path] = {}
     missing: list[str] = []
     for sub in SUBS:
@@ -199,6 +180,35 @@ def read_capture_set(directory: str | Path) -> CaptureSet:
         for sub, p in found.items():
             if p is not None:
                 files[(sub, name)] = p
+    return files
+
+
+def read_capture_set(directory: str | Path) -> CaptureSet:
+    """Read and validate a capture-set folder.
+
+    Checks: rig.toml present and valid; every REQUIRED image in both white/ and screen/;
+    ``black`` in both or in neither; one size for all images, equal to the projector's
+    resolution for space = "projector" (the camera's for space = "camera"). Raises
+    :class:`CaptureError` (or :class:`~viewcomp.calib.world.rig.RigError`) naming the file and fix.
+    """
+    root = Path(directory)
+    problem = path_problem(root)
+    if problem is None and not root.is_dir():
+        problem = "is a file, not a folder"
+    if problem is not None:
+        what = (
+            f"not found: capture set folder {root}"
+            if problem == "not found"
+            else (f"capture set folder {root}: {problem}")
+        )
+        raise CaptureError(f"{what} - give the folder written by {_FIX}")
+    rig_file = root / RIG_FILE
+    if (problem := path_problem(rig_file)) is not None:
+        raise CaptureError(f"{problem}: {RIG_FILE} in {root} - the capture set needs it; {_FIX}")
+    check_input_file(rig_file, "the rig file", f"a {RIG_FILE} text file", CaptureError)
+    rig = load_rig(rig_file)
+
+    files = _find_files(root)
 
     response = rig.camera.response_curve()
     loaded: dict[str, dict[str, np.ndarray]] = {sub: {} for sub in SUBS}

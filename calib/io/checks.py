@@ -80,3 +80,30 @@ def _check_colours_against_gray(cs: CaptureSet, sub: str) -> None:
             "exposure or white balance changed between them - capture both again with the "
             "camera's exposure and white balance locked",
         )
+
+
+MONO_REFUSAL = (
+    "the colour captures have R = G = B everywhere: a mono camera's set, which holds no colour "
+    "and so no colour mixing to fit; capture again with a colour camera (a mono camera "
+    "calibrates the geometry only)"
+)
+#: The least share of a capture's pixels that must be unclipped to judge it mono.
+MONO_MIN_UNCLIPPED = 0.01
+
+
+def is_mono_set(images: list[np.ndarray]) -> bool:
+    """True when every (H, W, 3) linear image has R == G == B exactly on its unclipped pixels
+    (every channel below 1.0, the top code): a mono camera's set. An image with fewer than
+    :data:`MONO_MIN_UNCLIPPED` unclipped pixels says nothing (a saturated colour capture is
+    grey too, and :func:`check_captures` refuses it naming ``--hdr``)."""
+    if not images:
+        return False
+    for im in images:
+        a = np.asarray(im)
+        ok = a.max(axis=-1) < 1.0
+        if ok.mean() < MONO_MIN_UNCLIPPED:
+            return False
+        r, g, b = a[..., 0][ok], a[..., 1][ok], a[..., 2][ok]
+        if not (np.array_equal(r, g) and np.array_equal(g, b)):
+            return False
+    return True

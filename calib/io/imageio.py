@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import CaptureError, ViewcompError
 from viewcomp.calib.io import npy
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.paths import check_input_file
@@ -29,10 +29,6 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 # side (the largest GL texture on common drivers) and 64 megapixels (8K video is 33).
 MAX_IMAGE_SIDE = 16384
 MAX_IMAGE_PIXELS = 64_000_000
-
-
-class CaptureError(ViewcompError, ValueError):
-    """An image or capture set that cannot be used; the message names the file and the fix."""
 
 
 def read_image(path: str | Path) -> np.ndarray:
@@ -55,21 +51,22 @@ def read_image(path: str | Path) -> np.ndarray:
     return _to_rgb(img, p, bgr=True)
 
 
-def read_rgb8(path: str | Path) -> np.ndarray:
+def read_rgb8(path: str | Path, error: type[ViewcompError] = CaptureError) -> np.ndarray:
     """An image to show (a photo, a video frame) as 8-bit RGB (H, W, 3) uint8.
 
     Any format OpenCV decodes (PNG, JPEG, TIFF, BMP, WebP); 16-bit images are scaled to 8 bits,
-    gray is promoted to 3 channels, alpha is dropped. Raises :class:`CaptureError` when the
-    file is missing, empty or cannot be decoded.
+    gray is promoted to 3 channels, alpha is dropped. Raises ``error`` (:class:`CaptureError`
+    unless the caller names its own, e.g. rendering's ImageError) when the file is missing,
+    empty or cannot be decoded.
     """
     p = Path(path)
-    _check_file(p)
-    bgr = _decode(p, cv2.IMREAD_COLOR, "an image (PNG or JPEG)")
+    _check_file(p, error)
+    bgr = _decode(p, cv2.IMREAD_COLOR, "an image (PNG or JPEG)", error)
     return np.ascontiguousarray(bgr[:, :, ::-1])
 
 
-def _check_file(p: Path) -> None:
-    check_input_file(p, "image", "an image file (saved or captured again if damaged)", CaptureError)
+def _check_file(p: Path, error: type[ViewcompError] = CaptureError) -> None:
+    check_input_file(p, "image", "an image file (saved or captured again if damaged)", error)
 
 
 def _read_npy(p: Path) -> np.ndarray:
@@ -99,9 +96,9 @@ def _read_npy(p: Path) -> np.ndarray:
     return arr
 
 
-def _check_dimensions(p: Path, w: int, h: int) -> None:
+def _check_dimensions(p: Path, w: int, h: int, error: type[ViewcompError] = CaptureError) -> None:
     if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE or w * h > MAX_IMAGE_PIXELS:
-        raise CaptureError(
+        raise error(
             f"cannot use {p}: its header says {w}x{h} pixels, over the limit of "
             f"{MAX_IMAGE_SIDE} pixels a side and {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels - "
             "scale it down (or the file is damaged)"
@@ -127,24 +124,26 @@ def _header_size(p: Path, data: np.ndarray) -> tuple[int, int] | None:
         return None
 
 
-def _decode(p: Path, flags: int, kind: str) -> np.ndarray:
+def _decode(
+    p: Path, flags: int, kind: str, error: type[ViewcompError] = CaptureError
+) -> np.ndarray:
     """The pixels of an image file as OpenCV decodes them with ``flags`` (BGR order), after
-    the header's dimensions are checked against the limits."""
+    the header's dimensions are checked against the limits; else ``error``."""
     try:
         data = np.fromfile(p, dtype=np.uint8)
     except OSError as exc:
-        raise CaptureError(f"cannot read image {p}: {exc}") from None
+        raise error(f"cannot read image {p}: {exc}") from None
     if data.size == 0:
-        raise CaptureError(
+        raise error(
             f"cannot read image {p}: cannot decode an empty (0-byte) file; fix: save or "
             "capture it again"
         )
     size = _header_size(p, data)
     if size is not None:
-        _check_dimensions(p, *size)
+        _check_dimensions(p, *size, error)
     img = cv2.imdecode(data, flags)
     if img is None:
-        raise CaptureError(
+        raise error(
             f"cannot read image {p}: cannot decode {p.name} as {kind} (truncated or another "
             "format?); fix: save it again as PNG"
         )

@@ -4,7 +4,7 @@ is read or any memory is allocated (used by the capture reader and the bundle lo
 from __future__ import annotations
 
 import math
-from typing import BinaryIO
+from typing import IO
 
 import numpy as np
 
@@ -13,7 +13,7 @@ import numpy as np
 MAX_ARRAY_BYTES = 2 << 30
 
 
-def read_header(f: BinaryIO) -> tuple[tuple[int, ...], np.dtype]:
+def read_header(f: IO[bytes]) -> tuple[tuple[int, ...], np.dtype]:
     """(shape, dtype) of the ``.npy`` stream ``f``, leaving ``f`` at the start of the data.
 
     Raises ValueError (with the cause) for a damaged header, an object dtype (it would need
@@ -44,7 +44,7 @@ def read_header(f: BinaryIO) -> tuple[tuple[int, ...], np.dtype]:
     return tuple(shape), dtype
 
 
-def read_data(f: BinaryIO, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+def read_data(f: IO[bytes], shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
     """The array body after :func:`read_header`: exactly ``prod(shape)`` items or ValueError."""
     count = math.prod(shape)
     data = f.read(count * dtype.itemsize)

@@ -18,11 +18,7 @@ import stat
 from collections.abc import Iterable
 from pathlib import Path
 
-from viewcomp.calib.errors import OutputError, ViewcompError
-
-
-class InputFileError(ViewcompError, ValueError):
-    """An input path that is not a usable file; the message names it, the cause and the fix."""
+from viewcomp.calib.errors import InputFileError, OutputError, ViewcompError
 
 
 def path_problem(p: Path) -> str | None:

@@ -52,14 +52,14 @@ def lobe_position(
     if refl.ndim == 3 and refl.shape[0] > 1 and refl.size > 3 * _BLOCK_PIXELS:
         # A whole grid: one block of rows at a time, so the temporaries (several (..., 3)
         # arrays) stay tens of MB at 3840x2160; the result is the same per pixel.
-        out = np.empty(refl.shape[:-1], dtype)
+        out: np.ndarray = np.empty(refl.shape[:-1], dtype)
         step = max(1, _BLOCK_PIXELS // refl.shape[1])
         for r0 in range(0, refl.shape[0], step):
             rows = slice(r0, r0 + step)
             out[rows] = lobe_position(refl[rows], pos[rows], eye, half, dtype)
         return out
-    r = np.asarray(refl, dtype)
-    v = np.asarray(eye, dtype) - np.asarray(pos, dtype)
+    r: np.ndarray = np.asarray(refl, dtype)
+    v: np.ndarray = np.asarray(eye, dtype) - np.asarray(pos, dtype)
     v = v / np.linalg.norm(v, axis=-1, keepdims=True)
     if half:
         # Y = R mirrored about N = +z: (-R.x, -R.y, R.z); cos = H.z = (Y + V).z / |Y + V|.

@@ -87,6 +87,7 @@ def screen_at(model: RuntimeModel, eye: np.ndarray) -> tuple[np.ndarray, np.ndar
     projector's leak (room light comes from elsewhere). Returns M (H, W, 3, 3) and A
     (H, W, 3), float32.
     """
+    assert model.Wc is not None and model.Aw is not None and model.Ac is not None  # pixel
     ds = lobe_change(model, eye)
     leak = np.asarray(model.lobe_black, np.float32) * model.Aw
     return model.Wc + ds[..., :, None] * model.Ww, model.Ac + ds * leak
@@ -118,6 +119,7 @@ def predict_view(model: RuntimeModel, levels: np.ndarray, eye: np.ndarray) -> np
         m, a = screen_at(model, eye)
         return (np.einsum("hwij,hwj->hwi", m, light) + a).astype(np.float32)
     y = lut_inverse_forward(model.inv_lut, model.inv_lo, model.inv_hi, lv / np.float32(255.0))
+    assert model.Wc_inv is not None  # a paper model always has it
     wc = np.linalg.inv(model.Wc_inv.astype(np.float64)).astype(np.float32)
     return (y @ wc.T).astype(np.float32)
 
@@ -201,6 +203,7 @@ def target_to_projector(model: RuntimeModel, target: np.ndarray, eye: View) -> n
     if model.method == "pixel":
         m, a = screen_at(model, eye)
         return np.linalg.solve(m, (target - a)[..., None])[..., 0].astype(np.float32)
+    assert model.Wc_inv is not None  # a paper model always has it
     return (target @ model.Wc_inv.T).astype(np.float32)
 
 

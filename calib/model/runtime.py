@@ -83,7 +83,7 @@ class RuntimeModel:
             self,
             refl=self.refl[::step, ::step],
             pos=self.pos[::step, ::step],
-            Ww=sub(self.Ww, 4),
+            Ww=self.Ww if self.Ww.ndim < 4 else self.Ww[::step, ::step],
             Wc=sub(self.Wc, 4),
             Aw=sub(self.Aw, 3),
             Ac=sub(self.Ac, 3),

@@ -6,5 +6,4 @@
 - ``simulate``: Simulated capture sets: what `viewcomp simulate` writes (projector or camera
   space).
 - ``simulator``: A physical simulator of projector, screen and camera (docs/MODEL.md section 5).
-- ``testing``: Small real calibrations for tests and examples (simulated, a second or so).
 """

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import MaterialError
 
 #: The arrays of one material and the shape each must have.
 MATERIAL_SHAPES: dict[str, tuple[int, ...]] = {
@@ -58,11 +58,6 @@ _FIX = (
     + " (scripts/convert_neural_brdf.py of viewcomp's repository writes them from the "
     "published Neural-BRDF weights of MERL, RGL-EPFL and Nielsen 2015 materials)"
 )
-
-
-class MaterialError(ViewcompError, ValueError):
-    """A material file (or array set) that cannot be used: the message names the file, what is
-    wrong and what to do."""
 
 
 def _checked(where: str, key: str, value: ArrayLike) -> NDArray[np.float64]:

@@ -179,7 +179,7 @@ def simulate_capture_set(
             rig=rig,
             black=black,
             projector=proj,
-            exposure=exposure,
+            exposure=None if exposure is None else float(exposure),  # "auto" is resolved
             hdr_stops=hdr_stops,
         )
     if exposure is not None:
@@ -204,14 +204,17 @@ def choose_exposure(
     scale = 1.0 / sim.camera.exposure
     if cam is not None:
         size = sim.rig.projector.resolution
-        todo = [(white, p) for p in camera_patterns(size, black, "chessboard").values()]
+        todo: list[tuple[AnyScreen, np.ndarray]] = [
+            (white, p) for p in camera_patterns(size, black, "chessboard").values()
+        ]
         todo += [(screen, p) for p in camera_patterns(size, black, "all").values()]
         todo.insert(0, (white, camera_patterns(size, False, "none")["gray"]))
         return auto_exposure(
             lambda s, p: cam.linear(s, p) * scale, todo, hdr_stops is not None, cam.view.inside
         )
     pats = projector_patterns(sim.rig.projector.resolution, black)
-    todo = [(white, pats["gray"])] + [(s, p) for s in (white, screen) for p in pats.values()]
+    todo = [(white, pats["gray"])]
+    todo += [(s, p) for s in (white, screen) for p in pats.values()]
     eye = sim.geometry.camera
     return auto_exposure(
         lambda s, p: sim.expose(sim.radiance(s, p, eye), vignetting=True) * scale,

@@ -40,7 +40,7 @@ from os import PathLike
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import SimulatorError
 from viewcomp.calib.io.hdr import check_stops, merge_exposures
 from viewcomp.calib.sim.materials import (
     Material,
@@ -72,10 +72,6 @@ GLOSS_PRESETS: dict[str, tuple[float, float]] = {
 }
 
 WHITE_ALBEDO = 0.85
-
-
-class SimulatorError(ViewcompError, ValueError):
-    """A simulator parameter is out of range or unknown."""
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewcomp.calib.world.eye import EyeError, check_angle, check_eye, eye_from_angle
+from viewcomp.calib.errors import AudienceError
+from viewcomp.calib.world.eye import EyeError, check_angle, check_eye, eye_from_angle, eye_to_polar
 
 MAX_VIEWERS = 16  # viewers in one audience (the shader's loop bound)
 ZONE_VIEWERS = 7  # viewers of a zone A:B without a count (every 10 degrees over 60:120)
@@ -33,10 +34,6 @@ _SPEC_HELP = (
     "give a zone A:B[:N] (degrees), angles or X,Y,Z eyes separated by ';', each optionally "
     'weighted with @W, e.g. 60:120, "60;90;120" or "0.2,0.03,0.5;-0.2,0.03,0.5"'
 )
-
-
-class AudienceError(EyeError):
-    """An audience SPEC or a set of viewers that cannot be used; names the item and the fix."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,8 +103,8 @@ def zone(lo: float, hi: float, n: int, distance: float, height: float) -> Audien
 
 
 def zone_angles(audience: Audience) -> np.ndarray:
-    """Each viewer's angle in degrees (atan2(z, x)), (K,)."""
-    return np.degrees(np.arctan2(audience.eyes[:, 2], audience.eyes[:, 0]))
+    """Each viewer's angle in degrees (:func:`~viewcomp.calib.world.eye.eye_to_polar`), (K,)."""
+    return np.array([eye_to_polar(e)[0] for e in audience.eyes])
 
 
 def _number(text: str, item: str) -> float:
@@ -149,8 +146,7 @@ def parse_audience(spec: str, distance: float, height: float) -> Audience:
                 n = ZONE_VIEWERS if len(parts) == 2 else _number(parts[2], item)
                 if n != int(n):
                     raise AudienceError(f"--audience: a zone's count is whole, got {item!r}")
-                z = zone(_number(parts[0], item), _number(parts[1], item), int(n), distance,
-                         height)  # fmt: skip
+                z = zone(_number(parts[0], item), _number(parts[1], item), int(n), distance, height)
                 eyes.extend(z.eyes)
                 weights.extend([weight / len(z)] * len(z))
             elif "," in body:

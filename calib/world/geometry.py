@@ -11,14 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import GeometryError
 from viewcomp.calib.world.rig import Device, Rig, unit_rows
 
 NORMAL = np.array([0.0, 0.0, 1.0])
-
-
-class GeometryError(ViewcompError, ValueError):
-    """The rig's geometry cannot be used (a pixel misses the screen, a device behind it)."""
 
 
 def meet_screen(origin: np.ndarray, rays: np.ndarray, device: str) -> np.ndarray:
@@ -56,7 +52,7 @@ def screen_points(projector: Device) -> np.ndarray:
     Raises:
         GeometryError: when some pixel's ray does not reach the screen in front of it.
     """
-    return meet_screen(projector.position, projector.pixel_rays(), "projector")
+    return meet_screen(np.asarray(projector.position), projector.pixel_rays(), "projector")
 
 
 def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
@@ -65,7 +61,7 @@ def screen_points_at(projector: Device, uv: np.ndarray) -> np.ndarray:
     Raises:
         GeometryError: a ray does not meet the screen in front of the projector.
     """
-    return meet_screen(projector.position, projector.rays_through(uv), "projector")
+    return meet_screen(np.asarray(projector.position), projector.rays_through(uv), "projector")
 
 
 def reflection_vectors(pos: np.ndarray, projector_position: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import RigError
 from viewcomp.calib.world.lens import distort_normalised, undistort_normalised
 from viewcomp.calib.world.response import Response, parse_response
 
@@ -39,10 +39,6 @@ _SECTIONS = {
 }
 _OPTIONAL = {"principal_point", "distortion", "height"}
 _SPACES = ("projector", "camera")
-
-
-class RigError(ViewcompError, ValueError):
-    """A rig.toml (or rig dict) that cannot be used; the message names file, key and fix."""
 
 
 def unit_rows(v: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ it reads embedded as hexadecimal:
   in (:func:`held_rows`: the GL compensator's view cache), 12 numbers per pixel;
 - ``VC_MAP0`` .. ``VC_MAP7`` (pixel method, ``param``: the eye follows the angle): texel k
   of every pixel of the GL compensator's maps
-  (:func:`viewcomp.rt.gl.compensator.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
+  (:func:`viewcomp.calib.model.shader_inputs.pixel_texels`: rows of Ww | Aw, rows of Wc | Ac,
   refl | the camera's lobe (R), p.xy | the camera's lobe (G, B)), 32 numbers per pixel;
 - both ``rgba16`` (16-bit unsigned normalised: value = offset + t (max - min) per texel
   channel over the grid) or, with ``precision=32``, ``rgba32f`` (exact, twice the size);
@@ -23,8 +23,8 @@ or ``mpv_paper.glsl`` of
 :mod:`viewcomp.shaders` with the formula of ``compensate_core.glsl`` (the GL compensator's)
 expanded into it, after
 ``#define`` lines with this export's numbers (the same CPU folding as the GL compensator:
-:func:`~viewcomp.rt.gl.compensator.inverse_position`,
-:func:`~viewcomp.rt.gl.compensator.paper_rows`).
+:func:`~viewcomp.calib.model.shader_inputs.inverse_position`,
+:func:`~viewcomp.calib.model.shader_inputs.paper_rows`).
 
 The viewing angle is fixed at export (eye and tone map baked in), which every mpv with
 user shaders runs (``vo=gpu`` and ``vo=gpu-next``); or, with ``param=True`` (pixel method
@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import importlib.resources
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import cv2
@@ -66,15 +66,12 @@ import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import ExportError
 from viewcomp.calib.model.reference import View, audience_normal, screen_at, tone_terms
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.model.shader_inputs import inverse_position, paper_rows, pixel_texels
+from viewcomp.calib.world import eye as eye_limits
 from viewcomp.calib.world.audience import Audience
-from viewcomp.rt.gl.compensator import (
-    inverse_position,
-    paper_rows,
-    pixel_texels,
-)
 from viewcomp.shaders import array_literal, assemble, literal, vec_literal
 
 if TYPE_CHECKING:
@@ -83,10 +80,6 @@ if TYPE_CHECKING:
 BASE_STEP = 4  # grid pixels per texel of the smooth base of a precision-8 export
 TONE_TABLE_STEP = 5.0  # degrees between the baked tone maps of the PARAM variant
 TONE_TABLE = np.arange(5.0, 175.0 + 1e-9, TONE_TABLE_STEP)
-
-
-class ExportError(ViewcompError, ValueError):
-    """An mpv shader cannot be made with these settings; the message says why and the fix."""
 
 
 @dataclass(frozen=True)
@@ -109,11 +102,13 @@ def fit_filter(grid: tuple[int, int]) -> str:
     render``/``play`` do: scaled with aspect kept to even sizes (bilinear, chroma sited left
     as MPEG-2/H.264 put it, which is what PyAV's reformat assumes), centred on black, square
     pixels. The same libswscale call as :class:`viewcomp.rt.media.video.VideoReader`, so the
-    planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/test_mpv.py)."""
+    planes are identical (checked against Debian 12's FFmpeg 5.1 in tests/rt/export/test_mpv.py)."""
     w, h = grid
-    return (f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"
-            ":flags=bilinear:in_h_chr_pos=0:out_h_chr_pos=0"
-            f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]")  # fmt: skip
+    return (
+        f"lavfi=[scale={w}:{h}:force_original_aspect_ratio=decrease:force_divisible_by=2"
+        ":flags=bilinear:in_h_chr_pos=0:out_h_chr_pos=0"
+        f",pad={w}:{h}:(ow-iw)/2:(oh-ih)/2:black,setsar=1]"
+    )
 
 
 def mpv_args(shader: str, grid: tuple[int, int], guard: str | None = None) -> list[str]:
@@ -139,9 +134,19 @@ def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
     """
     h, w = shape
     colours = np.array(
-        [[0, 0, 0], [255, 255, 255], [255, 0, 0], [0, 255, 0], [0, 0, 255],
-         [0, 255, 255], [255, 0, 255], [255, 255, 0], [128, 128, 128]], np.uint8,
-    )  # fmt: skip
+        [
+            [0, 0, 0],
+            [255, 255, 255],
+            [255, 0, 0],
+            [0, 255, 0],
+            [0, 0, 255],
+            [0, 255, 255],
+            [255, 0, 255],
+            [255, 255, 0],
+            [128, 128, 128],
+        ],
+        np.uint8,
+    )
     yy, xx = np.mgrid[0:h, 0:w]
     return colours[(xx + 3 * yy) % len(colours)]
 
@@ -196,7 +201,7 @@ def split_smooth(texels: np.ndarray, step: int = BASE_STEP) -> tuple[np.ndarray,
 def pack_maps(
     model: RuntimeModel, precision: int = 16
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """The pixel method's maps (:func:`~viewcomp.rt.gl.compensator.pixel_texels`) as 8
+    """The pixel method's maps (:func:`~viewcomp.calib.model.shader_inputs.pixel_texels`) as 8
     images (:func:`pack_images`): what the eye-following (``//!PARAM``) hook reads.
 
     Raises:
@@ -224,7 +229,7 @@ def held_rows(
     :func:`~viewcomp.calib.model.reference.tone_terms`, solved in float64 on the CPU; for an
     :class:`~viewcomp.calib.world.audience.Audience` of several viewers M^-1 is N^-1 S and
     M^-1 A is N^-1 q (:func:`~viewcomp.calib.model.reference.audience_normal`); then
-    t2 = scale y - off (``sq``: :func:`~viewcomp.rt.gl.compensator.inverse_position`).
+    t2 = scale y - off (``sq``: :func:`~viewcomp.calib.model.shader_inputs.inverse_position`).
     12 numbers per pixel instead of the 32 of the maps.
     """
     if isinstance(eye, Audience) and len(eye) > 1:
@@ -232,12 +237,14 @@ def held_rows(
         n_inv = np.linalg.inv(n)
         m_inv = n_inv @ s_t
         d = np.einsum("hwij,hwj->hwi", n_inv, q)
+        assert model.Aw is not None  # a pixel model always has it
         u, v, _ = tone_terms(m_inv, model.Aw.astype(np.float64), np.zeros_like(d))
         c = -d
     else:
         one = eye.eyes[0] if isinstance(eye, Audience) else eye
         m, amb = screen_at(model, np.asarray(one, np.float32))
         m_inv = np.linalg.inv(m.astype(np.float64))
+        assert model.Aw is not None  # a pixel model always has it
         u, v, c = tone_terms(m_inv, model.Aw.astype(np.float64), amb.astype(np.float64))
     g = np.einsum("hwij,hwjk->hwik", m_inv, model.Ww.astype(np.float64))
     rows = np.concatenate([alpha * g, (alpha * u + beta * v + c)[..., None]], axis=-1)
@@ -304,142 +311,233 @@ def export_mpv_shader(
     Raises:
         ExportError: an impossible combination, with the fix.
     """
-    if method not in ("pixel", "paper"):
-        raise ExportError(f"method must be 'pixel' or 'paper', got {method!r}")
-    if param and method != "pixel":
-        raise ExportError("the paper method's matrices and LUTs are computed on the CPU for each "
-                          "eye, so they cannot follow a shader parameter; fix: export it for a "
-                          "fixed --angle, or use --method pixel with --param")  # fmt: skip
-    if param and eye is not None:
+    req = _Request(
+        method,
+        angle,
+        None if eye is None else tuple(float(v) for v in eye),
+        audience,
+        param,
+        lam,
+        tone_sample,
+        tone,
+        precision,
+        source,
+    )
+    req, e = _check(cal, req)
+    build = _build(cal, req, e)
+    return _assemble(req, build)
+
+
+@dataclass(frozen=True)
+class _Request:
+    """:func:`export_mpv_shader`'s arguments, checked by :func:`_check`."""
+
+    method: str
+    angle: float | None
+    eye: tuple[float, ...] | None
+    audience: Audience | None
+    param: bool
+    lam: float
+    tone_sample: np.ndarray | None
+    tone: tuple[float, float] | None
+    precision: int
+    source: str
+
+
+@dataclass
+class _Build:
+    """What :func:`_build` computed: the tone map, the ``#define`` values, the bound textures
+    and their ``//!TEXTURE`` sections, the grid and the eye (metres)."""
+
+    alpha: float
+    beta: float
+    grid: tuple[int, int]
+    eye: np.ndarray
+    defines: dict[str, str | int | float] = field(default_factory=dict)
+    binds: list[str] = field(default_factory=lambda: ["HOOKED"])
+    textures: list[str] = field(default_factory=list)
+
+
+def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
+    """Refuse an impossible combination (ExportError, with the fix) before any work; returns
+    the request (one viewer of an audience becomes an eye) and the eye (3,) metres (an
+    audience's weighted mean)."""
+    if req.method not in ("pixel", "paper"):
+        raise ExportError(f"method must be 'pixel' or 'paper', got {req.method!r}")
+    if req.param and req.method != "pixel":
+        raise ExportError(
+            "the paper method's matrices and LUTs are computed on the CPU for each "
+            "eye, so they cannot follow a shader parameter; fix: export it for a "
+            "fixed --angle, or use --method pixel with --param"
+        )
+    if req.param and req.eye is not None:
         raise ExportError("--param makes the angle a parameter; it cannot be combined with --eye")
-    if param and tone is not None:
+    if req.param and req.tone is not None:
         raise ExportError(
             "--param bakes a tone map per angle; give --tone-from, not --alpha/--beta"
         )
-    if audience is not None and len(audience) == 1:
-        eye, audience = tuple(audience.eyes[0]), None
-    if audience is not None and (param or method != "pixel"):
-        raise ExportError("an audience of several viewers is baked in for the pixel method; fix: "
-                          "drop --param, use --method pixel")  # fmt: skip
-    if angle is None and eye is None and audience is None:
+    if req.audience is not None and len(req.audience) == 1:
+        req = replace(req, eye=tuple(float(v) for v in req.audience.eyes[0]), audience=None)
+    if req.audience is not None and (req.param or req.method != "pixel"):
+        raise ExportError(
+            "an audience of several viewers is baked in for the pixel method; fix: "
+            "drop --param, use --method pixel"
+        )
+    if req.angle is None and req.eye is None and req.audience is None:
         raise ExportError("give a viewing angle or an eye position")
-    try:
-        e = audience.centre if audience is not None else cal.eye(
-            angle=None if eye is not None else angle, eye=eye)  # fmt: skip
-    except ValueError as exc:
-        raise ExportError(str(exc)) from None
+    if req.precision == 8 and (req.param or req.method != "pixel"):
+        raise ExportError(
+            "--precision 8 stores the fixed-eye pixel method's rows; fix: use "
+            "16 with --param or --method paper"
+        )
+    if req.audience is not None:
+        return req, req.audience.centre
+    e = cal.eye(angle=None if req.eye is not None else req.angle, eye=req.eye, error=ExportError)
+    return req, e
+
+
+def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
+    """The tone map and everything the hook reads: ``#define`` values and textures."""
     h, w = cal.shape
-    comp = Compensation(cal, method, lam)
-    sample = full_range_sample() if tone_sample is None else thumbnail(tone_sample)
-    view: View = audience if audience is not None else e
+    comp = Compensation(cal, req.method, req.lam)
+    sample = full_range_sample() if req.tone_sample is None else thumbnail(req.tone_sample)
+    view: View = req.audience if req.audience is not None else e
     p = comp(sample, view)
-    alpha, beta = (p.alpha, p.beta) if tone is None else (float(tone[0]), float(tone[1]))
+    alpha, beta = (
+        (p.alpha, p.beta) if req.tone is None else (float(req.tone[0]), float(req.tone[1]))
+    )
     model = p.model
-    v = cal.rig.viewer
-    where = (f"angle {angle:g} deg" if eye is None else
-             "eye ({:.4f}, {:.4f}, {:.4f}) m".format(*e))  # fmt: skip
-    if audience is not None:
-        where = f"an audience of {len(audience)} viewers around " + \
-            "({:.4f}, {:.4f}, {:.4f}) m".format(*e)  # fmt: skip
-    if param:
-        where = f"angle from the shader parameter angle (default {angle:g} deg)"
     n_inv = int(model.inv_lut.shape[0])
     lut = _lut_image(model)
-    defines: dict[str, str | int | float] = {
-        "VC_GRID": vec_literal((w, h)),
-        "VC_LUT_W": literal(lut.shape[1]),
-        "VC_N_INV": n_inv,
-    }
-    binds = ["HOOKED"]
-    textures: list[str] = []
-    fmt = {8: "rgba8", 16: "rgba16"}.get(precision, "rgba32f")
-    if precision == 8 and (param or method != "pixel"):
-        raise ExportError("--precision 8 stores the fixed-eye pixel method's rows; fix: use "
-                          "16 with --param or --method paper")  # fmt: skip
-    if method == "pixel":
-        sq = inverse_position(model.inv_lo, model.inv_hi, n_inv)
-        defines.update({f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()})
-        if param:
-            images, scale, offset = pack_maps(model, precision)
-            name = "VC_MAP"
-        else:
-            try:
-                rows = held_rows(model, view, alpha, beta, sq)
-            except np.linalg.LinAlgError:
-                msg = "the screen's mixing matrix is singular at this eye"
-                raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
-            if precision == 8:
-                base, rows = split_smooth(rows)
-                h_b, w_b = base.shape[:2]
-                for k in range(3):
-                    binds.append(f"VC_BASE{k}")
-                    textures.append(_texture(f"VC_BASE{k}", base[:, :, k], "rgba32f"))
-                defines["VC_BASE_SIZE"] = vec_literal((w_b, h_b))
-            defines["VC_SPLIT"] = int(precision == 8)
-            images, scale, offset = pack_images(rows, precision)
-            name = "VC_ROW"
-        for k, img in enumerate(images):
-            binds.append(f"{name}{k}")
-            textures.append(_texture(f"{name}{k}", img, fmt))
-        defines.update({
-            "VC_S_INIT": array_literal("vec4", [vec_literal(r) for r in scale]),
-            "VC_O_INIT": array_literal("vec4", [vec_literal(r) for r in offset]),
-        })  # fmt: skip
-        if param:
-            alphas, betas = [], []
-            for a in TONE_TABLE:
-                t = comp.tone_map(model, sample, cal.eye(angle=float(a)))
-                alphas.append(literal(t.alpha))
-                betas.append(literal(t.beta))
-            defines.update({
-                "VC_LOBE_HALF": "true" if model.lobe_half else "false",
-                "VC_LOBE_N": int(np.shape(model.lobe)[0]),
-                "VC_LOBE_BLACK": vec_literal(model.lobe_black),
-                "VC_DIST": literal(v.distance),
-                "VC_HEIGHT": literal(v.height or 0.0),
-                "VC_TONE_FIRST": literal(TONE_TABLE[0]),
-                "VC_TONE_STEP": literal(TONE_TABLE_STEP),
-                "VC_TONE_N": len(TONE_TABLE),
-                "VC_TONE_ALPHA_INIT": array_literal("float", alphas),
-                "VC_TONE_BETA_INIT": array_literal("float", betas),
-            })  # fmt: skip
+    out = _Build(alpha, beta, (w, h), e)
+    out.defines.update({
+        "VC_GRID": vec_literal((w, h)), "VC_LUT_W": literal(lut.shape[1]), "VC_N_INV": n_inv,
+    })  # fmt: skip
+    if req.method == "pixel":
+        _build_pixel(cal, req, out, comp, model, sample, view)
     else:
+        assert model.Wc_inv is not None  # a paper model always has it
         rows = paper_rows(model.Ww, model.Wc_inv, model.inv_lo, model.inv_hi, n_inv, alpha, beta)
-        defines.update({f"VC_A{i}": vec_literal(rows[i]) for i in range(3)})
-    binds.append("VC_LUT")
-    textures.append(_texture("VC_LUT", lut, "rgba32f"))
+        out.defines.update({f"VC_A{i}": vec_literal(rows[i]) for i in range(3)})
+    out.binds.append("VC_LUT")
+    out.textures.append(_texture("VC_LUT", lut, "rgba32f"))
+    return out
+
+
+def _build_pixel(
+    cal: Calibration,
+    req: _Request,
+    out: _Build,
+    comp: Compensation,
+    model: RuntimeModel,
+    sample: np.ndarray,
+    view: View,
+) -> None:
+    """The pixel method's maps (``param``: the eye follows the angle) or its view cache for
+    a fixed eye, with their ``#define`` values, into ``out``."""
+    sq = inverse_position(model.inv_lo, model.inv_hi, int(model.inv_lut.shape[0]))
+    d = out.defines
+    d.update({f"VC_SQ_{key.upper()}": vec_literal(val) for key, val in sq.items()})
+    if req.param:
+        images, scale, offset = pack_maps(model, req.precision)
+        name = "VC_MAP"
+    else:
+        try:
+            rows = held_rows(model, view, out.alpha, out.beta, sq)
+        except np.linalg.LinAlgError:
+            msg = "the screen's mixing matrix is singular at this eye"
+            raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
+        if req.precision == 8:
+            base, rows = split_smooth(rows)
+            h_b, w_b = base.shape[:2]
+            for k in range(3):
+                out.binds.append(f"VC_BASE{k}")
+                out.textures.append(_texture(f"VC_BASE{k}", base[:, :, k], "rgba32f"))
+            d["VC_BASE_SIZE"] = vec_literal((w_b, h_b))
+        d["VC_SPLIT"] = int(req.precision == 8)
+        images, scale, offset = pack_images(rows, req.precision)
+        name = "VC_ROW"
+    fmt = {8: "rgba8", 16: "rgba16"}.get(req.precision, "rgba32f")
+    for k, img in enumerate(images):
+        out.binds.append(f"{name}{k}")
+        out.textures.append(_texture(f"{name}{k}", img, fmt))
+    d.update({
+        "VC_S_INIT": array_literal("vec4", [vec_literal(r) for r in scale]),
+        "VC_O_INIT": array_literal("vec4", [vec_literal(r) for r in offset]),
+    })  # fmt: skip
+    if req.param:
+        alphas, betas = [], []
+        for a in TONE_TABLE:
+            t = comp.tone_map(model, sample, cal.eye(angle=float(a)))
+            alphas.append(literal(t.alpha))
+            betas.append(literal(t.beta))
+        v = cal.rig.viewer
+        d.update({
+            "VC_LOBE_HALF": "true" if model.lobe_half else "false",
+            "VC_LOBE_N": int(np.shape(model.lobe)[0]),
+            "VC_LOBE_BLACK": vec_literal(model.lobe_black),
+            "VC_DIST": literal(v.distance),
+            "VC_HEIGHT": literal(v.height or 0.0),
+            "VC_TONE_FIRST": literal(TONE_TABLE[0]),
+            "VC_TONE_STEP": literal(TONE_TABLE_STEP),
+            "VC_TONE_N": len(TONE_TABLE),
+            "VC_TONE_ALPHA_INIT": array_literal("float", alphas),
+            "VC_TONE_BETA_INIT": array_literal("float", betas),
+            **eye_limits.glsl_defines(),
+        })  # fmt: skip
+
+
+def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
+    """The shader's text: a header with the mpv command line, the PARAM, the hook's
+    directives and GLSL, the textures; and its :class:`MpvShaderInfo`."""
+    (w, h), e, method, angle = b.grid, b.eye, req.method, req.angle
+    where = (
+        f"angle {angle:g} deg" if req.eye is None else "eye ({:.4f}, {:.4f}, {:.4f}) m".format(*e)
+    )
+    if req.audience is not None:
+        where = (
+            f"an audience of {len(req.audience)} viewers around "
+            + "({:.4f}, {:.4f}, {:.4f}) m".format(*e)
+        )
+    if req.param:
+        where = f"angle from the shader parameter angle (default {angle:g} deg)"
     header = [
         "// viewcomp: view-dependent compensation as an mpv user shader (`viewcomp export-mpv`).",
-        f"// Calibration {source or '(in memory)'}: projector grid {w}x{h}, {method} method, "
+        f"// Calibration {req.source or '(in memory)'}: projector grid {w}x{h}, {method} method, "
         f"{where}.",
-        f"// Tone map: alpha {alpha:.4f}, beta {beta:.5f}"
-        + (" (per angle from a table)" if param else "")
+        f"// Tone map: alpha {b.alpha:.4f}, beta {b.beta:.5f}"
+        + (" (per angle from a table)" if req.param else "")
         + ".",
         f"// Use, fullscreen on the projector (ideally at {w}x{h}):",
         "//   mpv " + " ".join(mpv_args("THIS_FILE", (w, h))) + " --fullscreen VIDEO",
         "// (the --vf fits the video to the grid as `viewcomp render` does, bars included).",
     ]
-    if param:
-        header.append("// Needs vo=gpu-next with a libplacebo that supports PARAM; set the "
-                      "angle with --glsl-shader-opts=angle=60.")  # fmt: skip
+    if req.param:
+        header.append(
+            "// Needs vo=gpu-next with a libplacebo that supports PARAM; set the "
+            "angle with --glsl-shader-opts=angle=60."
+        )
     parts = ["\n".join(header) + "\n\n"]
-    if param:
+    if req.param:  # the PARAM's range: the limits of viewcomp.calib.world.eye
         parts.append(
             "//!PARAM angle\n//!DESC viewing angle in degrees (90 = in front)\n"
-            f"//!TYPE float\n//!MINIMUM 1.0\n//!MAXIMUM 179.0\n{float(angle or 90.0):.1f}"
-            "\n\n"
+            f"//!TYPE float\n//!MINIMUM {eye_limits.ANGLE_MIN:.1f}\n"
+            f"//!MAXIMUM {eye_limits.ANGLE_MAX:.1f}\n{float(angle or 90.0):.1f}\n\n"
         )
     parts.append("//!HOOK OUTPUT\n")
-    parts += [f"//!BIND {b}\n" for b in binds]
+    parts += [f"//!BIND {name}\n" for name in b.binds]
     parts.append(f"//!DESC viewcomp compensation ({method}, {where})\n")
     hook = (
-        "mpv_paper.glsl" if method == "paper" else ("mpv_pixel.glsl" if param else "mpv_held.glsl")
+        "mpv_paper.glsl"
+        if method == "paper"
+        else ("mpv_pixel.glsl" if req.param else "mpv_held.glsl")
     )
-    parts.append(assemble(hook, defines, directives=False).source)
-    parts += textures
+    parts.append(assemble(hook, b.defines, directives=False).source)
+    parts += b.textures
     text = "".join(parts)
-    eye_t = None if param else (float(e[0]), float(e[1]), float(e[2]))
-    shown_angle = None if eye is not None or audience is not None else angle
-    info = MpvShaderInfo(method, (w, h), shown_angle, eye_t, param,
-                         alpha, beta, precision, len(text))  # fmt: skip
+    eye_t = None if req.param else (float(e[0]), float(e[1]), float(e[2]))
+    shown_angle = None if req.eye is not None or req.audience is not None else angle
+    info = MpvShaderInfo(
+        method, (w, h), shown_angle, eye_t, req.param, b.alpha, b.beta, req.precision, len(text)
+    )
     return text, info

@@ -23,16 +23,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from viewcomp.calib.errors import MpvCheckError
 from viewcomp.rt.export.mpv import guard_script
 from viewcomp.rt.play.xvfb import Xvfb, XvfbError, xvfb_available
 
 # mpv's listing of the GLSL it failed to compile ("[vo/gpu/opengl] [ 12] ...", "... shader
 # source:"): context, not the error.
 _SOURCE_LINE = re.compile(r"^\[vo[^\]]*\] (?:\[\s*\d+\]|.*source:$|$)")
-
-
-class MpvCheckError(RuntimeError):
-    """The check could not run (no mpv, no display, no shader file); the message says why."""
 
 
 #: The guard's exit status when mpv could not open any video output (the shader untried).
@@ -88,9 +85,11 @@ def check_mpv(
         context: list[str] = []
         if headless or not os.environ.get("DISPLAY"):
             if not xvfb_available():
-                raise MpvCheckError("no X display (DISPLAY is not set) and no Xvfb to start "
-                                    "one; fix: run it on the kiosk's display, or install "
-                                    "xvfb")  # fmt: skip
+                raise MpvCheckError(
+                    "no X display (DISPLAY is not set) and no Xvfb to start "
+                    "one; fix: run it on the kiosk's display, or install "
+                    "xvfb"
+                )
             try:
                 stack.enter_context(Xvfb((320, 240)))
             except XvfbError as exc:

@@ -26,9 +26,10 @@ Speed on llvmpipe (docs/BENCHMARKS.md) shapes the GL side:
   full solve every draw.
 
 The CPU side of the formula that both this class and the mpv export
-(:mod:`viewcomp.rt.export.mpv`) need lives here once: :func:`pixel_texels` (the per-pixel
-maps' layout), :func:`inverse_position` (the inverse LUT's squared position) and
-:func:`paper_rows` (the paper method's folded matrices).
+(:mod:`viewcomp.rt.export.mpv`) need is numpy only and lives once in
+:mod:`viewcomp.calib.model.shader_inputs`: ``pixel_texels`` (the per-pixel maps' layout),
+``inverse_position`` (the inverse LUT's squared position) and ``paper_rows`` (the paper
+method's folded matrices).
 
 Typical use::
 
@@ -42,9 +43,7 @@ Threading: call it from the thread whose GL context is current (the thread that 
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import moderngl
@@ -52,163 +51,38 @@ import numpy as np
 
 from viewcomp.calib.model.reference import lut_forward
 from viewcomp.calib.model.runtime import RuntimeModel
+from viewcomp.calib.model.shader_inputs import (  # noqa: F401 (pixel_texels etc. re-exported)
+    MAP_TEXELS,
+    as_f32,
+    inv_pairs,
+    inverse_position,
+    inverse_scale,
+    lobe_table,
+    paper_rows,
+    pixel_texel_blocks,
+    pixel_texels,
+)
 from viewcomp.calib.world.audience import MAX_VIEWERS, Audience
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.context import (
     BufferTexture,
     ProcAddress,
     create_context,
-    finish,
     flush,
-    set_sampler_units,
 )
-from viewcomp.rt.media.frames import Planes, yuv_coefficients
-from viewcomp.shaders import build_program, vec_literal
-
-_METHODS = {"identity": 0, "pixel": 1, "paper": 2}
-_CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
-_AUDIENCE, _BUILD_AUDIENCE = 5, 6  # an audience: solved per draw, its view cache
-_VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
-_PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience"}
-_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe".split()
-MAP_TEXELS = 8  # per pixel in pixel_texels
-
-
-def pixel_texels(model: RuntimeModel) -> np.ndarray:
-    """The pixel method's per-pixel values as (H, W, 8, 4) float32 texels, in the order that
-    ``pixel_maps`` of compensate_core.glsl reads: texels 0..2 = row i of Ww | Aw[i], 3..5 =
-    row i of Wc | Ac[i], 6 = R | the camera's lobe (red), 7 = p.x, p.y (metres; p.z = 0, the
-    screen plane) | the camera's lobe (green, blue) (:attr:`RuntimeModel.cam_lobe`).
-
-    Raises:
-        ValueError: an array missing, of the wrong shape or not finite, or points off the
-            screen plane, naming it.
-    """
-    h, w = model.shape
-    out = np.empty((h, w, MAP_TEXELS, 4), np.float32)  # every slot is written below
-    for r0, block in pixel_texel_blocks(model):
-        out[r0 : r0 + len(block)] = block
-    return out
+from viewcomp.rt.gl.frame_io import FrameIO
+from viewcomp.rt.gl.shader_passes import (
+    _CACHED,  # noqa: F401 (the cached METHOD, for tests)
+    _METHODS,
+    _SAMPLERS,
+    ShaderPasses,
+)
+from viewcomp.rt.gl.view_cache import ViewCache
+from viewcomp.rt.media.frames import Planes
+from viewcomp.shaders import vec_literal
 
 
-def pixel_texel_blocks(model: RuntimeModel) -> Iterator[tuple[int, np.ndarray]]:
-    """:func:`pixel_texels` a block of rows at a time: (first row, (rows, W, 8, 4) float32),
-    the block one array reused (copy or use it before the next). The 128 bytes of a pixel are
-    filled while they are in the cache, and a caller that uploads each block never holds
-    the whole grid's texels (265 MB at 1080p: their first touch alone cost 0.3 s here).
-
-    Raises:
-        ValueError: as :func:`pixel_texels`, before the first block.
-    """
-    h, w = model.shape
-    maps = []
-    for mat, amb in (("Ww", "Aw"), ("Wc", "Ac")):
-        if getattr(model, mat) is None or getattr(model, amb) is None:
-            raise ValueError("pixel method needs Ww, Wc (H, W, 3, 3) and Aw, Ac (H, W, 3)")
-        maps += [
-            _f32(getattr(model, mat), (h, w, 3, 3), mat),
-            _f32(getattr(model, amb), (h, w, 3), amb),
-        ]
-    refl = _f32(model.refl, (h, w, 3), "refl")
-    pos = _f32(model.pos, (h, w, 3), "pos")
-    if np.abs(pos[..., 2]).max(initial=0.0) > 1e-6:
-        raise ValueError("pos must lie on the screen plane z = 0 (docs/MODEL.md section 1)")
-    _f32(model.cam_eye, (3,), "cam_eye")
-    _lobe_table(model)
-    lobe = model.cam_lobe
-    if not np.all(np.isfinite(lobe)):
-        raise ValueError("the camera's lobe is not finite: check refl, pos, cam_eye and lobe")
-    step = max(1, (1 << 14) // max(w, 1))
-    buf = np.empty((min(step, h), w, MAP_TEXELS, 4), np.float32)
-    for r0 in range(0, h, step):
-        rows = slice(r0, r0 + step)
-        o = buf[: min(step, h - r0)]
-        for k in range(2):
-            o[:, :, 3 * k : 3 * k + 3, :3] = maps[2 * k][rows]
-            o[:, :, 3 * k : 3 * k + 3, 3] = maps[2 * k + 1][rows]
-        o[:, :, 6, :3] = refl[rows]
-        o[:, :, 7, :2] = pos[rows, :, :2]
-        o[:, :, 6, 3] = lobe[rows, :, 0]
-        o[:, :, 7, 2:] = lobe[rows, :, 1:]
-        yield r0, o
-
-
-def _lobe_table(model: RuntimeModel) -> np.ndarray:
-    """The lobe table as (n, 4) float32 texels (RGB | 0), n >= 2, checked."""
-    lobe = np.asarray(model.lobe)
-    if lobe.ndim != 2 or lobe.shape[1] != 3 or lobe.shape[0] < 2:
-        raise ValueError(f"lobe must be (n, 3) with n >= 2, got {lobe.shape}")
-    out = np.zeros((lobe.shape[0], 4), np.float32)
-    out[:, :3] = _f32(lobe, lobe.shape, "lobe")
-    return out
-
-
-def inverse_scale(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> np.ndarray:
-    """(N - 1)^2 / (hi - lo) per channel, float64 (3,): the inverse LUT's squared position
-    t2 per unit of value (``lut_inverse_sq`` in compensate_core.glsl: position sqrt(t2), t2
-    in [0, (N - 1)^2])."""
-    lo = np.asarray(inv_lo, np.float64)
-    span = np.maximum(np.asarray(inv_hi, np.float64) - lo, 1e-12)
-    return (n_inv - 1) ** 2 / span
-
-
-def inverse_position(inv_lo: np.ndarray, inv_hi: np.ndarray, n_inv: int) -> dict[str, np.ndarray]:
-    """The pixel method's ``pixel_t2(y, scale, off, lo, hi)`` constants (compensate_core.glsl),
-    float64 (3,) each: t2 = clamp(scale y - off, lo, hi) is the squared LUT position of y.
-
-    It equals the reference's clamp of y to [0, 1], then of the position to
-    [0, (N - 1)^2], as one clamp: both are increasing, so the inner bounds map to the outer
-    ones.
-    """
-    s = inverse_scale(inv_lo, inv_hi, n_inv)
-    lo = np.asarray(inv_lo, np.float64)
-    top = float((n_inv - 1) ** 2)
-    return {
-        "scale": s, "off": s * lo,
-        "lo": np.clip(-s * lo, 0.0, top), "hi": np.clip(s * (1.0 - lo), 0.0, top),
-    }  # fmt: skip
-
-
-def paper_rows(
-    Ww: np.ndarray,
-    Wc_inv: np.ndarray,
-    inv_lo: np.ndarray,
-    inv_hi: np.ndarray,
-    n_inv: int,
-    alpha: float,
-    beta: float,
-) -> np.ndarray:
-    """The paper method's ``paper_t2`` rows (compensate_core.glsl), (3, 4) float64: row i =
-    (A[i], c[i]) with A = diag(s) alpha Wc_inv Ww and c = s (beta Wc_inv 1 - lo), s =
-    :func:`inverse_scale`, so that t2 = A fwd(I) + c is the inverse LUT's squared position."""
-    s = inverse_scale(inv_lo, inv_hi, n_inv)
-    wc_inv = np.asarray(Wc_inv, np.float64)
-    out = np.empty((3, 4), np.float64)
-    out[:, :3] = s[:, None] * (alpha * (wc_inv @ np.asarray(Ww, np.float64)))
-    out[:, 3] = s * (beta * wc_inv.sum(axis=1) - np.asarray(inv_lo, np.float64))
-    return out
-
-
-def _inv_pairs(inv_lut: np.ndarray, n: int) -> np.ndarray:
-    """(3, N, 2) float32: [c, i] = (inv_lut[i, c], inv_lut[i + 1, c]) (last pair repeats)."""
-    lut = _f32(inv_lut, (n, 3), "inv_lut")
-    out = np.empty((3, n, 2), np.float32)
-    out[:, :, 0] = lut.T
-    out[:, :-1, 1] = lut[1:].T
-    out[:, -1, 1] = lut[-1]
-    return out
-
-
-def _f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
-    arr = np.ascontiguousarray(np.asarray(a, dtype=np.float32))
-    if arr.shape != shape:
-        raise ValueError(f"{name} must be {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} holds NaN or infinite values")
-    return arr
-
-
-class Compensator:
+class Compensator(FrameIO, ShaderPasses, ViewCache):
     """Runs the compensation shader for one :class:`RuntimeModel` on an (H, W) grid.
 
     Args:
@@ -311,11 +185,11 @@ class Compensator:
         cw, ch = (w + 1) // 2, (h + 1) // 2
         self._uv = self._tex((cw, ch), 2, "u1")
         self._uv_host = np.empty((ch, cw, 2), np.uint8)
-        fwd = _f32(model.fwd_lut, (256, 3), "fwd_lut")
+        fwd = as_f32(model.fwd_lut, (256, 3), "fwd_lut")
         levels = np.broadcast_to(np.arange(256, dtype=np.float32)[:, None], (256, 3))
         fwd_rows = np.ascontiguousarray(lut_forward(fwd, levels).T)  # exact at integer levels
         self._fwd = self._buffer_texture(fwd_rows, "r32f")
-        self._inv = self._buffer_texture(_inv_pairs(inv_lut, n_inv), "rg32f")
+        self._inv = self._buffer_texture(inv_pairs(inv_lut, n_inv), "rg32f")
         units: dict[str, Any] = {
             "u_rgb": self._rgb, "u_y": self._y, "u_uv": self._uv,
             "u_fwd": self._fwd, "u_inv": self._inv,
@@ -324,23 +198,23 @@ class Compensator:
         self._consts: dict[str, str | int] = {
             "GRID_W": w, "GRID_H": h, "N_INV": n_inv, "MAX_VIEWERS": MAX_VIEWERS,
         }  # fmt: skip
-        self._cam_eye = _f32(model.cam_eye, (3,), "cam_eye")
-        self._inv_lo = _f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
-        self._inv_hi = _f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
+        self._cam_eye = as_f32(model.cam_eye, (3,), "cam_eye")
+        self._inv_lo = as_f32(model.inv_lo, (3,), "inv_lo").astype(np.float64)
+        self._inv_hi = as_f32(model.inv_hi, (3,), "inv_hi").astype(np.float64)
         if model.method == "pixel":
             units.update(self._upload_pixel_maps(model))
-            lobe = _lobe_table(model)
+            lobe = lobe_table(model)
             units["u_lobe"] = self._buffer_texture(lobe, "rgba32f")
             self._consts["LOBE_N"] = int(lobe.shape[0])
             self._consts["LOBE_HALF"] = "true" if model.lobe_half else "false"
-            self._consts["LOBE_BLACK"] = vec_literal(_f32(model.lobe_black, (3,), "lobe_black"))
+            self._consts["LOBE_BLACK"] = vec_literal(as_f32(model.lobe_black, (3,), "lobe_black"))
             sq = inverse_position(self._inv_lo, self._inv_hi, n_inv)
             self._consts.update({f"SQ_{k.upper()}": vec_literal(v) for k, v in sq.items()})
         if model.method == "paper":
-            self._Ww = _f32(model.Ww, (3, 3), "Ww").astype(np.float64)
+            self._Ww = as_f32(model.Ww, (3, 3), "Ww").astype(np.float64)
             if model.Wc_inv is None:
                 raise ValueError("paper method needs model.Wc_inv (3, 3)")
-            self._Wc_inv = _f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+            self._Wc_inv = as_f32(model.Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
         self._units = [(i, units.get(name)) for i, name in enumerate(_SAMPLERS)]
         self._view: tuple[Any, Any] | None = None  # (texture, framebuffer), made on first use
         self._view_eye: tuple[float, ...] | None = None  # the view the view cache holds
@@ -354,160 +228,6 @@ class Compensator:
         self.set_eye(*self._cam_eye)
         self.set_tone(1.0, 0.0)
         self._yuv_key: tuple[str, str] = ("bt709", "limited")
-
-    def _view_block(self, n: int) -> tuple[int, int]:
-        """(bx, by): ``n`` texels of a pixel as a bx x by block of the view cache's target.
-
-        One row of ``n`` texels if ``n * W`` fits the driver's GL_MAX_TEXTURE_SIZE, else the
-        fewest rows that fit (3 x 2 for 5 texels at 3840 wide on llvmpipe's 16384).
-        """
-        max_size = int(self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        for by in range(1, n + 1):
-            bx = -(-n // by)
-            if bx * self.width <= max_size and by * self.height <= max_size:
-                return bx, by
-        raise ValueError(
-            f"grid {self.width}x{self.height} too large for the view cache "
-            f"(GL_MAX_TEXTURE_SIZE {max_size}); use view_cache=False"
-        )
-
-    def _upload_pixel_maps(self, model: RuntimeModel) -> dict[str, Any]:
-        """The maps as one buffer texture: texel k of pixel (x, y) at 8 (y W + x) + k,
-        written a block of rows at a time (:func:`pixel_texel_blocks`)."""
-        row_bytes = self.width * MAP_TEXELS * 16
-        blocks = pixel_texel_blocks(model)  # checks the model before anything is made
-        first = next(blocks)
-        tex = self._buffer_texture(row_bytes * self.height, "rgba32f")
-        for r0, block in itertools.chain([first], blocks):
-            tex.write(block, offset=row_bytes * r0)
-        return {"u_maps": tex}
-
-    def _program(self, method: int) -> tuple[Any, Any]:
-        """(program, vertex array) of shader ``method`` on the current input, compiled once."""
-        inp = 0 if method in (_BUILD_VIEW, _BUILD_AUDIENCE) else self._input
-        yuv = self._yuv_key if inp == 1 else None
-        key = (method, inp, yuv)
-        if key not in self._programs:
-            defines: dict[str, str | int | float] = {**self._consts, "METHOD": method, "INPUT": inp}
-            if yuv is not None:
-                k = yuv_coefficients(*yuv)  # type: ignore[arg-type]
-                defines["YUV_K"] = f"ivec4({k.cy}, {k.cr_r}, {k.cb_b}, {k.y_off})"
-                defines["YUV_KG"] = f"ivec2({k.cb_g}, {k.cr_g})"
-            prog = self._track(build_program(self.ctx, defines=defines))
-            vao = self._track(self.ctx.vertex_array(prog, []))
-            # Distinct units: sampler types differ (2D and buffer samplers).
-            units = {n: i for i, n in enumerate(_SAMPLERS) if n in prog}
-            set_sampler_units(prog, units, self._loader)
-            self._programs[key] = (prog, vao)
-        return self._programs[key]
-
-    def _frame_values(self) -> bytes:
-        """The per-frame inputs v_frame[4] (vec4 each) of the current variant, as bytes."""
-        out = np.zeros((4, 4), np.float32)
-        if self._identity:
-            pass
-        elif self.method == "pixel":  # shader METHODs 1, 3 and 4 alike
-            out[0, :3] = self.eye
-            out[0, 3] = self.alpha
-            out[1, 0] = self.beta
-        elif self.method == "paper":
-            out[:3] = paper_rows(self._Ww, self._Wc_inv, self._inv_lo, self._inv_hi,
-                                 self._n_inv, self.alpha, self.beta)  # fmt: skip
-        return out.tobytes()
-
-    def _audience_values(self) -> bytes:
-        """The audience as the shader's u_eyes[MAX_VIEWERS]: (eye.xyz, weight) per viewer."""
-        out = np.zeros((MAX_VIEWERS, 4), np.float32)
-        if self.audience is not None:
-            k = len(self.audience)
-            out[:k, :3] = self.audience.eyes
-            out[:k, 3] = self.audience.weights
-        return out.tobytes()
-
-    def _shader_method(self) -> int:
-        """The shader METHOD for the next draw; advances the view cache when it is due.
-
-        The pixel method runs from the view cache (METHOD 3, ~0.7x the time on llvmpipe)
-        when the eye (or the audience) is the one the cache was built for: an audience's
-        cache holds its combined solve, so a held audience costs what a held eye does. The
-        cache is (re)built once the view has been the same for ``view_hold`` draws in a row
-        (a held viewer, a constant ``--angle``), in ``view_steps`` bands of rows, one band
-        before each draw, so that no single draw takes much longer than the others; until it
-        is complete, and while the view keeps moving, every draw solves in full (METHOD 1, or
-        5 for an audience).
-        """
-        if self._identity:
-            return 0
-        if self.method != "pixel":
-            return _METHODS[self.method]
-        aud = self.audience
-        view = tuple(float(v) for v in self.eye) if aud is None else (-1.0, *aud.key)
-        if view == self._last_eye:
-            self._held += 1
-        else:
-            self._last_eye, self._held = view, 0
-        if view == self._view_eye:
-            return _CACHED
-        build = _BUILD_VIEW if aud is None else _BUILD_AUDIENCE
-        if self.view_cache and self._held >= self.view_hold and self._build_view_band(view, build):
-            return _CACHED
-        return _METHODS["pixel"] if aud is None else _AUDIENCE
-
-    def _build_view_band(self, eye: tuple[float, ...], build: int = _BUILD_VIEW) -> bool:
-        """Render the next band of the view cache for the view ``eye`` (an eye, or an
-        audience's key) with shader ``build``; True once it is complete."""
-        bx, by = self._view_block(_VIEW_TEXELS)
-        size = (bx * self.width, by * self.height)
-        row_bytes = 16 * size[0]
-        if self._view is None:
-            fbo = self._track(self.ctx.framebuffer(color_attachments=[self._tex(size, 4, "f4")]))
-            view = self._buffer_texture(row_bytes * size[1], "rgba32f")
-            self._view = (view, fbo)
-            self._consts["VIEW_BX"], self._consts["VIEW_BY"] = bx, by
-            self._units[_SAMPLERS.index("u_view")] = (_SAMPLERS.index("u_view"), view)
-        if self._building != eye:  # a new eye: start over (the old bands are stale)
-            self._building, self._band_row = eye, 0
-            self._view_eye = None
-        view, fbo = self._view
-        rows = -(-self.height // max(1, self.view_steps))
-        r0, r1 = self._band_row, min(self.height, self._band_row + rows)
-        band = (0, by * r0, size[0], by * (r1 - r0))
-        fbo.viewport = (0, 0, *size)
-        fbo.scissor = band
-        fbo.use()
-        self._render(build, flip_y=0)
-        fbo.scissor = None
-        # Into the buffer texture the draws read (a copy within the driver, no round trip).
-        fbo.read_into(view.buffer, viewport=band, components=4, dtype="f4",
-                      write_offset=row_bytes * by * r0)  # fmt: skip
-        self._band_row = r1
-        if r1 < self.height:
-            return False
-        self._view_eye, self._building = eye, None
-        return True
-
-    def _render(self, method: int, flip_y: int) -> None:
-        prog, vao = self._program(method)
-        if "u_frame" in prog:  # the linker may keep only the elements a variant reads
-            u = prog["u_frame"]
-            u.write(self._frame_values()[: 16 * max(1, u.array_length)])
-        if "u_flip_y" in prog:
-            prog["u_flip_y"].value = flip_y
-        if "u_n_eyes" in prog:
-            prog["u_n_eyes"].value = len(self.audience) if self.audience is not None else 0
-        if "u_eyes" in prog:
-            prog["u_eyes"].write(self._audience_values())
-        for unit, tex in self._units:
-            if tex is not None:
-                tex.use(unit)
-        vao.render(moderngl.TRIANGLES, vertices=3)
-
-    def _draw(self, framebuffer: Any, viewport: tuple[int, int, int, int], flip_y: int) -> None:
-        method = self._shader_method()  # may render the view cache first
-        self.last_path = _PATHS[method]
-        framebuffer.use()
-        self.ctx.viewport = viewport
-        self._render(method, flip_y)
 
     # ----------------------------------------------------------------- state
     @property
@@ -539,12 +259,15 @@ class Compensator:
             self.set_eye(*aud.eyes[0])
             return
         if self.method != "pixel":
-            raise ValueError(f"an audience of several viewers needs the pixel method, not "
-                             f"{self.method}")  # fmt: skip
+            raise ValueError(
+                f"an audience of several viewers needs the pixel method, not {self.method}"
+            )
         eye = np.asarray(aud.centre, np.float32)
         self.eye = eye
-        self.audience = Audience(aud.eyes.astype(np.float32).astype(np.float64),
-                                 aud.weights.astype(np.float32).astype(np.float64))  # fmt: skip
+        self.audience = Audience(
+            aud.eyes.astype(np.float32).astype(np.float64),
+            aud.weights.astype(np.float32).astype(np.float64),
+        )
 
     def set_angle(self, deg: float, distance: float, height: float) -> None:
         """Eye from a viewing angle: E = (d cos t, h, d sin t); degrees and metres."""
@@ -571,50 +294,15 @@ class Compensator:
         if self.method == "pixel" and (inv_lo is not None or inv_hi is not None):
             raise ValueError("the pixel method's inverse LUT domain is fixed: make a new one")
         if Wc_inv is not None:
-            self._Wc_inv = _f32(Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
+            self._Wc_inv = as_f32(Wc_inv, (3, 3), "Wc_inv").astype(np.float64)
         if inv_lut is not None:
-            self._inv.write(_inv_pairs(inv_lut, self._n_inv))
+            self._inv.write(inv_pairs(inv_lut, self._n_inv))
         if inv_lo is not None:
-            self._inv_lo = _f32(inv_lo, (3,), "inv_lo").astype(np.float64)
+            self._inv_lo = as_f32(inv_lo, (3,), "inv_lo").astype(np.float64)
         if inv_hi is not None:
-            self._inv_hi = _f32(inv_hi, (3,), "inv_hi").astype(np.float64)
+            self._inv_hi = as_f32(inv_hi, (3,), "inv_hi").astype(np.float64)
 
     # ----------------------------------------------------------------- per frame
-    def upload(self, frame: np.ndarray) -> None:
-        """Upload an RGB frame (H, W, 3) uint8 (levels 0..255) as the next input."""
-        if frame.shape != (self.height, self.width, 3) or frame.dtype != np.uint8:
-            raise ValueError(
-                f"frame must be uint8 {(self.height, self.width, 3)}, got {frame.dtype} "
-                f"{frame.shape} (scale with viewcomp.rt.media.frames.fit_rgb first)"
-            )
-        self._rgb.write(np.ascontiguousarray(frame))
-        self._input = 0
-
-    def upload_planes(self, planes: Planes) -> None:
-        """Upload a yuv420p frame (converted to RGB levels in the shader, see yuv.glsl)."""
-        planes.check()
-        if planes.shape != (self.height, self.width):
-            raise ValueError(
-                f"planes must be {(self.height, self.width)}, got {planes.shape} "
-                "(the video reader fits frames to the grid)"
-            )
-        yuv_coefficients(planes.colorspace, planes.color_range)  # validates both
-        self._y.write(np.ascontiguousarray(planes.y))
-        self._uv_host[..., 0] = planes.u  # interleave: one chroma texture, half the reads
-        self._uv_host[..., 1] = planes.v
-        self._uv.write(self._uv_host)
-        self._yuv_key = (planes.colorspace, planes.color_range)
-        self._input = 1
-
-    def upload_buffer(self, buffer: moderngl.Buffer) -> None:
-        """Upload an RGB frame already on the GPU: a pixel buffer of this context holding
-        (H, W, 3) uint8 levels in :meth:`upload`'s order (a copy within the driver)."""
-        if buffer.size < self.width * self.height * 3:
-            raise ValueError(f"the buffer holds {buffer.size} bytes, a frame needs "
-                             f"{self.width * self.height * 3}")  # fmt: skip
-        self._rgb.write(buffer, alignment=1)
-        self._input = 0
-
     def draw(self) -> None:
         """Run the shader on the last upload into the own framebuffer.
 
@@ -623,21 +311,6 @@ class Compensator:
         """
         self._draw(self.fbo, (0, 0, self.width, self.height), flip_y=0)
         flush(self.ctx)
-
-    def read(self, out: np.ndarray | None = None) -> np.ndarray:
-        """Read back the last draw as (H, W, 3) uint8 (into ``out`` if given, no copy).
-
-        Waits for the draw with the GIL released (:func:`viewcomp.rt.gl.context.finish`), so
-        other Python threads (decoder, encoder) run meanwhile.
-        """
-        shape = (self.height, self.width, 3)
-        if out is None:
-            out = np.empty(shape, np.uint8)
-        elif out.shape != shape or out.dtype != np.uint8 or not out.flags.c_contiguous:
-            raise ValueError(f"out must be a C-contiguous uint8 array {shape}, got {out.shape}")
-        finish(self.ctx)
-        self.fbo.read_into(out, components=3, alignment=1)
-        return out
 
     def render(self, frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Compensate one RGB frame (H, W, 3) uint8 -> (H, W, 3) uint8 for the projector."""

@@ -10,16 +10,12 @@ from typing import Any
 
 import moderngl
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import GLUnavailable
 
 GL_FIX = (
     "install the Debian packages libegl1 libgl1 libgl1-mesa-dri (scripts/setup.sh does it); "
     "Mesa llvmpipe (no GPU) is enough"
 )
-
-
-class GLUnavailable(ViewcompError, RuntimeError):
-    """No OpenGL 3.3 context can be made; the message names the cause and the fix."""
 
 
 def create_context(require: int = 330) -> moderngl.Context:
@@ -33,7 +29,8 @@ def create_context(require: int = 330) -> moderngl.Context:
         GLUnavailable: EGL or the GL driver is missing, or the version is below ``require``.
     """
     try:
-        ctx = moderngl.create_standalone_context(backend="egl", require=require)
+        # moderngl's stub types **settings as dicts; backend is a string (moderngl's docs)
+        ctx = moderngl.create_standalone_context(backend="egl", require=require)  # type: ignore[arg-type]
     except Exception as exc:  # moderngl/glcontext raise plain Exception for a missing lib
         raise GLUnavailable(
             f"cannot create an OpenGL {require // 100}.{require % 100 // 10} context through "
@@ -88,13 +85,13 @@ BUFFER_FORMATS = {"r32f": 0x822E, "rg32f": 0x8230, "rgba32f": 0x8814, "rgba32ui"
 ProcAddress = Callable[[str], int]  # a GL function loader: name -> address (0: none)
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def libegl() -> ctypes.CDLL:
     """The system's libEGL, loaded once (raises OSError when it is missing)."""
     return ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def egl_proc_address() -> ProcAddress:
     """EGL's ``eglGetProcAddress`` as a loader (libglvnd also dispatches it to a current GLX
     context). Raises OSError without libEGL."""
@@ -136,7 +133,7 @@ def default_proc_address() -> ProcAddress:
     return lambda name: int(fn(name.encode()) or 0)
 
 
-@functools.lru_cache(maxsize=None)  # noqa: UP033 (the STYLE.md idiom)
+@functools.cache
 def gl_function(
     name: str, argtypes: tuple[Any, ...], loader: ProcAddress | None = None, restype: Any = None
 ) -> Any:
@@ -168,7 +165,9 @@ def set_sampler_units(
     uniform1i = gl_function("glUniform1i", (ctypes.c_int, ctypes.c_int), loader)
     use(program.glo)
     for name, unit in units.items():
-        uniform1i(program[name].location, unit)
+        member = program[name]
+        assert isinstance(member, moderngl.Uniform), f"{name} is not a uniform"
+        uniform1i(member.location, unit)
     use(0)
 
 

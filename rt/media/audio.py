@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.errors import AudioDeviceError
+
 log = logging.getLogger(__name__)
 
 RATE = 48000
@@ -75,10 +77,6 @@ def _libasound() -> Any | None:
         lib.snd_lib_error_set_handler(_SILENCE)
         _LIB["lib"] = lib
     return _LIB["lib"]
-
-
-class AudioDeviceError(RuntimeError):
-    """The audio device failed while playing; the player goes on silently."""
 
 
 class AlsaOutput:
@@ -138,14 +136,30 @@ def open_alsa(
     h = ctypes.c_void_p()
     err = int(lib.snd_pcm_open(ctypes.byref(h), device.encode(), _SND_PCM_STREAM_PLAYBACK, 0))
     if err < 0:
-        log.info("audio: no ALSA device %r (%s); playing silently", device,
-                 lib.snd_strerror(err).decode(errors="replace"))  # fmt: skip
+        log.info(
+            "audio: no ALSA device %r (%s); playing silently",
+            device,
+            lib.snd_strerror(err).decode(errors="replace"),
+        )
         return None
-    err = int(lib.snd_pcm_set_params(h, _SND_PCM_FORMAT_S16_LE, _SND_PCM_ACCESS_RW_INTERLEAVED,
-                                     channels, rate, 1, int(latency * 1e6)))  # fmt: skip
+    err = int(
+        lib.snd_pcm_set_params(
+            h,
+            _SND_PCM_FORMAT_S16_LE,
+            _SND_PCM_ACCESS_RW_INTERLEAVED,
+            channels,
+            rate,
+            1,
+            int(latency * 1e6),
+        )
+    )
     if err < 0:
-        log.info("audio: ALSA device %r refuses %d Hz stereo (%s); playing silently", device,
-                 rate, lib.snd_strerror(err).decode(errors="replace"))  # fmt: skip
+        log.info(
+            "audio: ALSA device %r refuses %d Hz stereo (%s); playing silently",
+            device,
+            rate,
+            lib.snd_strerror(err).decode(errors="replace"),
+        )
         lib.snd_pcm_close(h)
         return None
     return AlsaOutput(lib, h, device, rate, channels)
@@ -244,8 +258,10 @@ class AudioPlayer:
             return self._origins.get(seq)
 
     def _samples(self, frame: Any) -> np.ndarray:
-        parts = [f.to_ndarray().reshape(-1, self.output.channels) for f in
-                 self._resampler.resample(frame)]  # fmt: skip
+        parts = [
+            f.to_ndarray().reshape(-1, self.output.channels)
+            for f in self._resampler.resample(frame)
+        ]
         if not parts:
             return np.zeros((0, self.output.channels), np.int16)
         return np.concatenate(parts).astype(np.int16, copy=False)

@@ -28,7 +28,7 @@ import numpy as np
 from viewcomp.calib.errors import describe_os_error
 from viewcomp.calib.io.atomic import AtomicFile
 from viewcomp.rt.media.formats import OutputPlan
-from viewcomp.rt.media.video import VideoError
+from viewcomp.rt.media.video import AudioMode, VideoError
 
 _LOG_LINES = 3  # lines of ffmpeg's own messages quoted when it fails
 
@@ -48,7 +48,7 @@ class FfmpegPipeWriter:
             the file's, >= 0.
     """
 
-    audio_mode = "none"  # ffmpeg reads the audio from the input itself
+    audio_mode: AudioMode = "none"  # ffmpeg reads the audio from the input itself
 
     def __init__(
         self,

@@ -42,7 +42,7 @@ import subprocess
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast
 
 import av
 
@@ -97,7 +97,8 @@ class VideoCodec:
         return next(iter(self.profiles))
 
 
-_YUV420 = {"main": (None, "yuv420p", 8)}
+_YUV420: dict[str, tuple[str | None, str, int]] = {"main": (None, "yuv420p", 8)}
+_YUV444: dict[str, tuple[str | None, str, int]] = {"main": (None, "yuv444p", 8)}
 CODECS: dict[str, VideoCodec] = {
     c.encoder: c
     for c in (
@@ -115,7 +116,7 @@ CODECS: dict[str, VideoCodec] = {
         # VP9 in constant-quality mode needs the bit rate at 0 besides the CRF.
         VideoCodec("libvpx-vp9", "VP9", _YUV420, crf=True, options={"b": "0", "row-mt": "1"}),
         VideoCodec("libsvtav1", "AV1", _YUV420, crf=True, env={"SVT_LOG": "1"}),  # errors only
-        VideoCodec("ffv1", "FFV1 (lossless)", {"main": (None, "yuv444p", 8)}),
+        VideoCodec("ffv1", "FFV1 (lossless)", _YUV444),
         VideoCodec(
             "prores_ks",
             "Apple ProRes",
@@ -418,7 +419,7 @@ def _try_encoder(
     """Open ``encoder`` for frames of ``size`` (width, height); FormatError saying why it
     cannot start."""
     try:
-        cc = av.CodecContext.create(encoder, "w")
+        cc = cast(av.VideoCodecContext, av.CodecContext.create(encoder, "w"))
         cc.width, cc.height = size
         cc.pix_fmt = pix_fmt
         cc.options = options

@@ -24,6 +24,7 @@ import numpy as np
 
 from viewcomp.calib.errors import ViewcompError, describe_os_error
 from viewcomp.calib.io.atomic import atomic_dir, atomic_path
+from viewcomp.rt.media.video import AudioMode
 
 # OpenCV's writer parameters per extension: JPEG quality 95 at 4:4:4, TIFF LZW (lossless).
 _JPEG = [cv2.IMWRITE_JPEG_QUALITY, 95, cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
@@ -75,7 +76,7 @@ class SequenceWriter:
     :meth:`abort` leaves nothing. ``write_audio`` ignores audio.
     """
 
-    audio_mode = "none"
+    audio_mode: AudioMode = "none"
 
     def __init__(self, pattern: str | os.PathLike[str]) -> None:
         self.pattern = Path(pattern)

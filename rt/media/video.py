@@ -49,7 +49,7 @@ from typing import Any, Literal
 import av
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError, describe_os_error
+from viewcomp.calib.errors import VideoError, describe_os_error
 from viewcomp.calib.io.atomic import AtomicFile
 from viewcomp.rt.media.averrors import DAMAGED_FIX, describe_av_error
 from viewcomp.rt.media.formats import OutputPlan, plan_output
@@ -71,10 +71,6 @@ _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.ENOENT
 _OPUS_RATES = (48000, 24000, 16000, 12000, 8000)  # the only rates Opus encodes
 _STD_LAYOUTS = {1: "mono", 2: "stereo", 3: "2.1", 4: "quad", 5: "5.0", 6: "5.1", 8: "7.1"}
 _QUEUE_POLL = 0.1  # seconds between checks of the stop flag while the queue is full
-
-
-class VideoError(ViewcompError, RuntimeError):
-    """A video cannot be read or written; the message names the file and the fix."""
 
 
 @dataclass(frozen=True)
@@ -242,7 +238,7 @@ class VideoReader:
         if (fw, fh) == (tw, th):
             y, u, v = (np.ascontiguousarray(a) for a in planes)
         else:
-            y, u, v = pad_planes(*planes, x0, y0, tw, th, crange)
+            y, u, v = pad_planes(planes[0], planes[1], planes[2], x0, y0, tw, th, crange)
         t = float(frame.time) - t0 if frame.time is not None else 0.0
         return Planes(y, u, v, cspace, crange, t)
 
@@ -255,8 +251,12 @@ class VideoReader:
             skip = self.start_at - 0.5 / float(self.info.rate)  # frames before it are skipped
             if self.start_at > 0.0:
                 vs = self.video_stream
-                self.container.seek(int((t0 + self.start_at) / vs.time_base), stream=vs,
-                                    backward=True, any_frame=False)  # fmt: skip
+                self.container.seek(
+                    int((t0 + self.start_at) / vs.time_base),
+                    stream=vs,
+                    backward=True,
+                    any_frame=False,
+                )
             for packet in self.container.demux(streams):
                 if self._stop.is_set():
                     return
@@ -546,111 +546,6 @@ class VideoWriter:
             self._target.discard(cause)
 
     def __enter__(self) -> VideoWriter:
-        return self
-
-    def __exit__(self, exc_type: object, *exc: object) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
-
-
-class EncodeThread:
-    """Runs a :class:`VideoWriter` on its own thread: frames and audio in, in order.
-
-    Read-back buffers come from a small pool (:meth:`buffer`) and go back to it once encoded,
-    so the steady state allocates nothing per frame. At most ``depth`` items wait in the
-    queue; :meth:`buffer` and :meth:`put_frame` block while the encoder is behind. An error on
-    the encoder thread is raised in the caller's thread by the next call.
-
-    Use :meth:`close` (flush, rename into place) or :meth:`abort` (no output left); as a
-    context manager, an exception aborts.
-    """
-
-    def __init__(self, writer: VideoWriter, shape: tuple[int, int, int], depth: int = 3) -> None:
-        self.writer = writer
-        self._queue: queue.Queue[Any] = queue.Queue(maxsize=depth)
-        self._free: queue.Queue[np.ndarray] = queue.Queue()
-        for _ in range(depth + 3):  # queued, being encoded, in flight, being filled
-            self._free.put(np.empty(shape, np.uint8))
-        self._error: BaseException | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="viewcomp-encode", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while True:
-            item = self._queue.get()
-            if item is _END or self._stop.is_set():
-                return
-            try:
-                if isinstance(item, AudioItem):
-                    self.writer.write_audio(item)
-                else:
-                    self.writer.write(item)
-                    self._free.put(item)
-            except BaseException as exc:  # re-raised in the caller's thread
-                self._error = exc
-                self._stop.set()
-                return
-
-    def _check(self) -> None:
-        if self._error is not None:
-            raise self._error
-
-    def _put(self, item: Any) -> None:
-        while True:
-            self._check()
-            try:
-                self._queue.put(item, timeout=_QUEUE_POLL)
-                return
-            except queue.Full:
-                continue
-
-    def buffer(self) -> np.ndarray:
-        """A free (H, W, 3) uint8 array to render the next frame into."""
-        while True:
-            self._check()
-            try:
-                return self._free.get(timeout=_QUEUE_POLL)
-            except queue.Empty:
-                continue
-
-    def put_frame(self, rgb: np.ndarray) -> None:
-        """Queue a frame (a :meth:`buffer` array) for encoding; it returns to the pool."""
-        self._put(rgb)
-
-    def put_audio(self, item: AudioItem) -> None:
-        """Queue an audio item (written in order with the frames)."""
-        self._put(item)
-
-    @property
-    def frames_written(self) -> int:
-        """Frames encoded so far (all of them after :meth:`close`)."""
-        return self.writer.frames_written
-
-    def close(self) -> None:
-        """Encode what is queued, flush and move the file into place."""
-        self._put(_END)
-        self._thread.join()
-        self._check()
-        self.writer.close()
-
-    def abort(self) -> None:
-        """Stop without finishing; the temporary file is deleted."""
-        self._stop.set()
-        while self._thread.is_alive():
-            try:  # unblock a put waiting on a full queue; the thread then sees the flag
-                self._queue.get_nowait()
-            except queue.Empty:
-                try:
-                    self._queue.put_nowait(_END)
-                except queue.Full:
-                    pass
-            self._thread.join(timeout=_QUEUE_POLL)
-        self.writer.abort()
-
-    def __enter__(self) -> EncodeThread:
         return self
 
     def __exit__(self, exc_type: object, *exc: object) -> None:

@@ -57,7 +57,7 @@ class GlfwSession:
         self.last_error = ""
         glfw.set_error_callback(self._error)
         if not glfw.init():
-            glfw.set_error_callback(None)
+            glfw.set_error_callback(None)  # type: ignore[arg-type]  # None: no callback (glfw)
             raise error(
                 f"cannot open the display ({self.last_error or 'glfw.init failed'}; "
                 f"DISPLAY={os.environ.get('DISPLAY', '(unset)')}); fix: {DISPLAY_FIX}"

@@ -82,7 +82,7 @@ class GlfwProjector:
             "present.frag.glsl",
         )
         if "u_flip_y" in self._prog:
-            self._prog["u_flip_y"].value = 1
+            self._prog["u_flip_y"].value = 1  # type: ignore[union-attr]  # a uniform: moderngl types members as a union
         self._tex = self._ctx.texture(self._size, 3, dtype="f1", alignment=1)
         self._tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._vao = self._ctx.vertex_array(self._prog, [])

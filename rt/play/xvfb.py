@@ -13,9 +13,7 @@ import shutil
 import subprocess
 from typing import IO
 
-
-class XvfbError(RuntimeError):
-    """Xvfb is missing or did not start; the message says why."""
+from viewcomp.calib.errors import XvfbError
 
 
 def xvfb_available() -> bool:
@@ -49,10 +47,21 @@ class Xvfb:
         w_, h_ = self.size
         try:
             self.process = subprocess.Popen(
-                [exe, "-displayfd", str(w), "-screen", "0", f"{w_}x{h_}x{self.depth}",
-                 "-nolisten", "tcp", "-noreset"],
-                pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-            )  # fmt: skip
+                [
+                    exe,
+                    "-displayfd",
+                    str(w),
+                    "-screen",
+                    "0",
+                    f"{w_}x{h_}x{self.depth}",
+                    "-nolisten",
+                    "tcp",
+                    "-noreset",
+                ],
+                pass_fds=(w,),
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+            )
         finally:
             os.close(w)
         try:

@@ -50,11 +50,12 @@ import numpy as np
 from tqdm import tqdm
 
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
-from viewcomp.calib.errors import ViewcompError
-from viewcomp.calib.io.imageio import CaptureError, read_rgb8
+from viewcomp.calib.errors import ImageError
+from viewcomp.calib.io.imageio import read_rgb8
 from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
+from viewcomp.rt.media.encode_thread import EncodeThread
 from viewcomp.rt.media.ffmpeg_pipe import FfmpegPipeWriter
 from viewcomp.rt.media.formats import OutputPlan, plan_output
 from viewcomp.rt.media.frames import Planes, fit_rgb, thumbnail_planes, yuv420p_to_rgb
@@ -62,7 +63,6 @@ from viewcomp.rt.media.images import ImageWriteError, SequenceWriter, write_stil
 from viewcomp.rt.media.video import (
     DEFAULT_PRESET,
     AudioItem,
-    EncodeThread,
     VideoReader,
     VideoWriter,
 )
@@ -91,11 +91,7 @@ class CompensationLike(Protocol):
 
     def base_model(self) -> RuntimeModel: ...
 
-    def __call__(self, thumb: np.ndarray, eye: np.ndarray, t: float | None = None) -> Any: ...
-
-
-class ImageError(ViewcompError, RuntimeError):
-    """An input image cannot be read or the output image cannot be written."""
+    def __call__(self, thumb: np.ndarray, eye: View, t: float | None = None) -> Any: ...
 
 
 @dataclass(frozen=True)
@@ -318,8 +314,9 @@ def render_file(
         _write_image(dst, out)
         seconds = time.perf_counter() - t_start
         return RenderStats("image", 1, seconds, seconds, t_params)
-    return _render_video(comp, model, src, plan, eye_track, backend, identity, crf, preset,
-                         progress, ctx, t_start)  # fmt: skip
+    return _render_video(
+        comp, model, src, plan, eye_track, backend, identity, crf, preset, progress, ctx, t_start
+    )
 
 
 def _render_video(
@@ -346,8 +343,13 @@ def _render_video(
             writer = _writer(plan, reader, crf, preset)
             with EncodeThread(writer, (h, w, 3)) as enc:
                 reader.audio_mode = writer.audio_mode
-                bar = tqdm(total=info.frames, unit="frame", disable=not progress,
-                           desc=src.name, dynamic_ncols=True)  # fmt: skip
+                bar = tqdm(
+                    total=info.frames,
+                    unit="frame",
+                    disable=not progress,
+                    desc=src.name,
+                    dynamic_ncols=True,
+                )
                 try:
                     _video_loop(reader, comp, eng, enc, eye_track, identity, bar, clock, t_start)
                 finally:
@@ -435,11 +437,7 @@ def _video_loop(
 
 def _read_image(path: Path, grid: tuple[int, int]) -> np.ndarray:
     """Read an image as 8-bit RGB (H, W, 3) fitted to ``grid`` (H, W)."""
-    try:
-        rgb = read_rgb8(path)
-    except CaptureError as exc:
-        raise ImageError(str(exc)) from None
-    return fit_rgb(rgb, grid[1], grid[0])
+    return fit_rgb(read_rgb8(path, ImageError), grid[1], grid[0])
 
 
 def _write_image(path: Path, rgb: np.ndarray) -> None:

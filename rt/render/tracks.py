@@ -15,16 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import TrackError
 from viewcomp.calib.io.paths import check_input_file
 from viewcomp.calib.world.audience import Audience
-from viewcomp.calib.world.eye import EyeError, check_angle, check_track, eye_from_angle
+from viewcomp.calib.world.eye import check_angle, check_track, eye_from_angle
 
 EyeTrack = Callable[[float], "np.ndarray | Audience"]
-
-
-class TrackError(ViewcompError, ValueError):
-    """An angle track (CSV) is malformed; the message names the file, the line and the fix."""
 
 
 def constant_eye(x: float, y: float, z: float) -> EyeTrack:
@@ -51,10 +47,7 @@ class AngleTrack:
     """
 
     def __init__(self, times: np.ndarray, degrees: np.ndarray, distance: float, height: float):
-        try:
-            self.times, self.degrees = check_track(times, degrees)
-        except EyeError as exc:
-            raise TrackError(str(exc)) from None
+        self.times, self.degrees = check_track(times, degrees, error=TrackError)
         self.distance, self.height = float(distance), float(height)
 
     def angle(self, t: float) -> float:
@@ -96,10 +89,7 @@ def load_angle_track(path: str | os.PathLike[str], distance: float, height: floa
             raise TrackError(f"{path}:{lineno}: not a number ({row}); {fix}") from exc
         if not (np.isfinite(t) and np.isfinite(d)):
             raise TrackError(f"{path}:{lineno}: not a finite number ({row}); {fix}")
-        try:
-            check_angle(d, f"{path}:{lineno}: the angle")
-        except EyeError as exc:
-            raise TrackError(str(exc)) from None
+        check_angle(d, f"{path}:{lineno}: the angle", TrackError)
         if times and t <= times[-1]:
             raise TrackError(f"{path}:{lineno}: time {t} is not after {times[-1]}; {fix}")
         times.append(t)

@@ -28,14 +28,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import DetectorError
 
 # Below this width the 24x24 cascade misses most faces; the detector upsamples nothing.
 MIN_FACE_PX = 24
-
-
-class DetectorError(ViewcompError, RuntimeError):
-    """The face model cannot be loaded; the message says what is missing."""
 
 
 @functools.lru_cache(maxsize=1)
@@ -239,8 +235,10 @@ def _dedupe(boxes: np.ndarray, scores: np.ndarray) -> np.ndarray:
         b = boxes[i]
         cx, cy = b[0] + b[2] / 2, b[1] + b[3] / 2
         inside = any(k[0] <= cx <= k[0] + k[2] and k[1] <= cy <= k[1] + k[3] for k in keep)
-        contains = any(b[0] <= k[0] + k[2] / 2 <= b[0] + b[2] and
-                       b[1] <= k[1] + k[3] / 2 <= b[1] + b[3] for k in keep)  # fmt: skip
+        contains = any(
+            b[0] <= k[0] + k[2] / 2 <= b[0] + b[2] and b[1] <= k[1] + k[3] / 2 <= b[1] + b[3]
+            for k in keep
+        )
         if not (inside or contains):
             keep.append(b)
     return np.asarray(keep, np.float64).reshape(-1, 4)

@@ -82,8 +82,10 @@ class Stats:
 
     def summary(self) -> str:
         ms = 1000.0 * self.seconds / max(self.frames, 1)
-        return (f"{self.frames} frames, a face in {self.with_face}, {self.sent} updates "
-                f"sent, {ms:.1f} ms per frame")  # fmt: skip
+        return (
+            f"{self.frames} frames, a face in {self.with_face}, {self.sent} updates "
+            f"sent, {ms:.1f} ms per frame"
+        )
 
 
 class Pipeline:
@@ -239,8 +241,7 @@ def build(
         SourceError: ``src`` cannot be read, or its frames do not fit the camera's aspect.
     """
     device = tracking_camera(rig)
-    source = FrameSource(src, fps=options.fps, realtime=options.realtime,
-                         size=device.resolution)  # fmt: skip
+    source = FrameSource(src, fps=options.fps, realtime=options.realtime, size=device.resolution)
     try:
         return Pipeline(source, device, options, publishers)
     except BaseException:  # undo on any failure, Ctrl-C included; then re-raise

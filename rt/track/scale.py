@@ -59,7 +59,7 @@ class FaceTemplate:
         x0, y0 = max(0, int(x - m)), max(0, int(y - m))
         x1 = min(gray.shape[1], int(np.ceil(x + w * config.span + m)))
         y1 = min(gray.shape[0], int(np.ceil(y + w * config.span + m)))
-        roi = gray[y0:y1, x0:x1].astype(np.float32)
+        roi: np.ndarray = gray[y0:y1, x0:x1].astype(np.float32)
         if min(roi.shape[:2]) < 8:  # the box lies (almost) outside the frame
             return None
         q = min(1.0, config.match_px / w)  # match on a scaled-down copy of a large face

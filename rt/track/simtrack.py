@@ -68,8 +68,11 @@ def tracked_walk(
     device = walk_camera()
     times, truth = walk(seconds, fps)
     frames = _Frames(device, truth, seed)
-    pipeline = Pipeline(ArraySource(frames, fps, "<simulated walk>"), device,  # type: ignore[arg-type]
-                        options or TrackOptions())  # fmt: skip
+    pipeline = Pipeline(
+        ArraySource(frames, fps, "<simulated walk>"),  # type: ignore[arg-type]  # list-like
+        device,
+        options or TrackOptions(),
+    )
     tracked = np.empty_like(truth)
     try:
         for i, frame in enumerate(pipeline.source):

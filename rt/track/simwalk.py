@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.io.atomic import atomic_path, write_text_atomic
+from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.calib.world.rig import Device, Rig, default_rig, rig_to_toml
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, boxes_from_eyes
 
@@ -77,11 +78,11 @@ def walk(
     n = max(1, round(seconds * fps))
     t = np.arange(n) / fps
     phase = 2.0 * math.pi * t / seconds
-    theta = np.radians(90.0 + half_angle * np.sin(phase))
+    theta = 90.0 + half_angle * np.sin(phase)  # degrees
     mid, amp = (near + far) / 2.0, (far - near) / 2.0
     d = mid - amp * np.cos(2.0 * phase + 0.6)
     y = height + 0.03 * np.sin(3.0 * phase)
-    return t, np.stack([d * np.cos(theta), y, d * np.sin(theta)], axis=-1)
+    return t, eye_from_angle(theta, d, y)
 
 
 @functools.lru_cache(maxsize=1)
@@ -129,8 +130,9 @@ def render_frame(
         u, v = b[0] + 0.5 * b[2], b[1] + EYE_ROW * b[3]  # where the eyes' midpoint goes
         src = cv2.GaussianBlur(face, (0, 0), sigmaX=max(0.5 / s - 0.4, 0.01)) if s < 1 else face
         m = np.array([[s, 0.0, u - s * ASTRONAUT_EYES[0]], [0.0, s, v - s * ASTRONAUT_EYES[1]]])
-        warped = cv2.warpAffine(src, m, (w, h), flags=cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+        warped = cv2.warpAffine(
+            src, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+        )
         a = warped[:, :, 3:4]
         out = out * (1.0 - a) + warped[:, :, :3] * a
     out = out + rng.normal(0.0, noise, out.shape).astype(np.float32)

@@ -25,14 +25,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from viewcomp.calib.errors import ViewcompError
+from viewcomp.calib.errors import SourceError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-
-
-class SourceError(ViewcompError, ValueError):
-    """A camera, video or image sequence that cannot be read; the message names it and says
-    what to give instead."""
 
 
 @dataclass(frozen=True)
@@ -116,8 +111,11 @@ class FrameSource:
             cv2.utils.logging.setLogLevel(level)
         if not cap.isOpened():
             cap.release()
-            kind = "no camera with this index can be opened" if isinstance(what, int) else (
-                "not a video OpenCV can open")  # fmt: skip
+            kind = (
+                "no camera with this index can be opened"
+                if isinstance(what, int)
+                else ("not a video OpenCV can open")
+            )
             raise SourceError(f"{what}: {kind}; {_hint()}")
         if isinstance(what, int):
             # one buffered frame: a reader that is busy gets the newest frame, not a queue

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from viewcomp.cli import UsageError
+from viewcomp.calib.errors import UsageError
 
 #: The simulated screen without --screen and --gloss.
 DEFAULT_SCREEN = "magenta"

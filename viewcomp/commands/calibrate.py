@@ -86,8 +86,10 @@ def run(args: argparse.Namespace) -> int:
             f"gamma {_v(f.gamma)}, R^2 {_v(f.r2)}, rms {_v(f.rms)} (log units)"
         )
     else:
-        print(f"  paper: not fitted ({cal.info.get('paper_error')}); the bundle holds the "
-              "per-pixel method alone")  # fmt: skip
+        print(
+            f"  paper: not fitted ({cal.info.get('paper_error')}); the bundle holds the "
+            "per-pixel method alone"
+        )
     other = "mirror" if lobe.param == "half" else "half"
     print(
         f"  per-pixel: s = b + lobe({lobe.param} angle), tabulated; baseline "
@@ -97,8 +99,10 @@ def run(args: argparse.Namespace) -> int:
     )
     clipped = int(cal.info.get("clipped_pixels", 0))
     if clipped:
-        print(f"  {clipped} pixels clipped in some capture were left out of the fits; "
-              "capture with --hdr to measure them")  # fmt: skip
+        print(
+            f"  {clipped} pixels clipped in some capture were left out of the fits; "
+            "capture with --hdr to measure them"
+        )
     print(f"  projector response from the white ramp: rms misfit {cal.pixel.response_rms:.4f}")
     geo = cal.info.get("geometry")
     if geo:

@@ -8,7 +8,7 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from viewcomp.cli import UsageError
+from viewcomp.calib.errors import UsageError
 
 if TYPE_CHECKING:
     from viewcomp.calib.emu.emulator import Emulator

@@ -19,11 +19,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         "shader was then not tried.",
     )
     p.add_argument("shader", help="the shader file from `viewcomp export-mpv`")
-    p.add_argument("--vo", choices=["gpu", "gpu-next"], default="gpu",
-                   help="mpv's video output to check with (default gpu)")  # fmt: skip
-    p.add_argument("--headless", action="store_true",
-                   help="check on a private Xvfb with software OpenGL even when there is a "
-                   "display (the default without one)")  # fmt: skip
+    p.add_argument(
+        "--vo",
+        choices=["gpu", "gpu-next"],
+        default="gpu",
+        help="mpv's video output to check with (default gpu)",
+    )
+    p.add_argument(
+        "--headless",
+        action="store_true",
+        help="check on a private Xvfb with software OpenGL even when there is a "
+        "display (the default without one)",
+    )
     p.set_defaults(run=run)
 
 
@@ -40,15 +47,24 @@ def run(args: argparse.Namespace) -> int:
         return 0
     said = "; ".join(result.errors[:2]) or f"exit status {result.status}"
     if result.no_output:
-        print(f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) could not open a "
-              f"video output here, so {args.shader} was not tried: {said}; fix: run the "
-              "check on the kiosk's display, or with --headless (a private Xvfb with "
-              "software OpenGL)", file=sys.stderr)  # fmt: skip
+        print(
+            f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) could not open a "
+            f"video output here, so {args.shader} was not tried: {said}; fix: run the "
+            "check on the kiosk's display, or with --headless (a private Xvfb with "
+            "software OpenGL)",
+            file=sys.stderr,
+        )
         return 2
-    fix = ("export it without --param for this mpv (or use one whose libplacebo reads "
-           "//!PARAM)" if "PARAM" in said else "export it again with this viewcomp (an "
-           "edited or cut-short file is rejected), or check mpv's OpenGL driver")  # fmt: skip
-    print(f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) rejects {args.shader} "
-          f"and would play the video uncompensated: {said}; fix: {fix}; and play with "
-          "export-mpv's --guard script, which stops mpv instead", file=sys.stderr)  # fmt: skip
+    fix = (
+        "export it without --param for this mpv (or use one whose libplacebo reads //!PARAM)"
+        if "PARAM" in said
+        else "export it again with this viewcomp (an "
+        "edited or cut-short file is rejected), or check mpv's OpenGL driver"
+    )
+    print(
+        f"viewcomp check-mpv: error: {result.version} (vo={args.vo}) rejects {args.shader} "
+        f"and would play the video uncompensated: {said}; fix: {fix}; and play with "
+        "export-mpv's --guard script, which stops mpv instead",
+        file=sys.stderr,
+    )
     return 2

@@ -77,33 +77,45 @@ def run(args: argparse.Namespace) -> int:
                 tiles[f"{m} method"] = sim.observe(screen, img, eye)
             de = {k: delta_e2000(v, ideal) for k, v in tiles.items()}
             table.append((iname, angle, de))
-            small = [cv2.resize(v, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-                     for v in tiles.values()]  # fmt: skip
-            heads = [[k, f"seen at {angle} deg" if k.startswith("white") else f"dE {de[k]:.1f}"]
-                     for k in tiles]  # fmt: skip
+            small = [
+                cv2.resize(v, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+                for v in tiles.values()
+            ]
+            heads = [
+                [k, f"seen at {angle} deg" if k.startswith("white") else f"dE {de[k]:.1f}"]
+                for k in tiles
+            ]
             rows.append(labelled_row(small, heads))
         log(f"compensated {iname} for angles {', '.join(map(str, DEMO_ANGLES))}")
     body = np.concatenate(rows, axis=0)
-    title = (f"what a viewer sees on the simulated glossy {name} screen at each angle "
-             "(dE: mean CIEDE2000 vs the white screen, lower is better)")  # fmt: skip
+    title = (
+        f"what a viewer sees on the simulated glossy {name} screen at each angle "
+        "(dE: mean CIEDE2000 vs the white screen, lower is better)"
+    )
     grid = np.concatenate([band(body.shape[1], [title]), body], axis=0)
     picture = out / "demo.png"
     write_png(picture, grid)
     print("\nmean CIEDE2000 against the white screen (lower is better):")
     print(f"{'image':>10} {'angle':>5} {'uncompensated':>14} {'paper':>7} {'per-pixel':>9}")
     for iname, angle, de in table:
-        print(f"{iname:>10} {angle:>5} {de['uncompensated']:>14.2f} {de['paper method']:>7.2f} "
-              f"{de['pixel method']:>9.2f}")  # fmt: skip
+        print(
+            f"{iname:>10} {angle:>5} {de['uncompensated']:>14.2f} {de['paper method']:>7.2f} "
+            f"{de['pixel method']:>9.2f}"
+        )
     print(f"\nside-by-side picture (what a viewer sees at each angle): {picture.resolve()}")
     if not args.no_video:
         _video(out, cal, sim, screen, images, log)
     else:
-        # a demo folder holds one run: videos of an earlier run would not match this picture
-        for old in VIDEO_OUTPUTS:
-            if (out / old).is_file():
-                (out / old).unlink()
-                log(f"removed {out / old} of an earlier run (--no-video)")
+        _remove_old_videos(out, log)
     return 0
+
+
+def _remove_old_videos(out: Path, log) -> None:
+    """A demo folder holds one run: videos of an earlier run would not match this picture."""
+    for old in VIDEO_OUTPUTS:
+        if (out / old).is_file():
+            (out / old).unlink()
+            log(f"removed {out / old} of an earlier run (--no-video)")
 
 
 #: The files the video part of the demo writes into its folder.
@@ -143,10 +155,16 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     for t, a, b in zip(times, frames_in, frames_out, strict=False):
         eye = track(t)
         angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
-        row = [sim.observe(white_screen(), a, eye), sim.observe(screen, a, eye),
-               sim.observe(screen, b, eye)]  # fmt: skip
-        heads = [["white screen (ideal)", f"viewer at {angle:.0f} deg, {t:.1f} s"],
-                 ["uncompensated", ""], ["compensated (GLSL, per-pixel)", ""]]  # fmt: skip
+        row = [
+            sim.observe(white_screen(), a, eye),
+            sim.observe(screen, a, eye),
+            sim.observe(screen, b, eye),
+        ]
+        heads = [
+            ["white screen (ideal)", f"viewer at {angle:.0f} deg, {t:.1f} s"],
+            ["uncompensated", ""],
+            ["compensated (GLSL, per-pixel)", ""],
+        ]
         tiles.append(labelled_row(row, heads))
     viewer = out / "viewer.mp4"
     _write_frames(viewer, tiles, 25)
@@ -165,7 +183,7 @@ def write_pan_clip(path: Path, images: list, seconds: float, rate: int) -> None:
     span = strip.shape[1] - w
     frames = [strip[:, round(span * i / max(n - 1, 1)) :][:, :w] for i in range(n)]
     from viewcomp.calib.io.atomic import atomic_path
-    from viewcomp.rt.testing import write_clip
+    from viewcomp.rt.media.sample_clip import write_clip
 
     with atomic_path(path) as tmp:
         write_clip(str(tmp), frames, rate, options={"preset": "veryfast", "crf": "18"})

@@ -33,8 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "HDR, calibrated and compensated, beside ideal captures, with the capture time the "
         "real devices would take",
     )
-    p.add_argument("--no-walk", action="store_true",
-                   help="--protocol audience: the zone only, no tracked walk")  # fmt: skip
+    p.add_argument(
+        "--no-walk", action="store_true", help="--protocol audience: the zone only, no tracked walk"
+    )
     p.add_argument(
         "--materials",
         metavar="DIR",
@@ -64,8 +65,7 @@ def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
     w, h = size or ((320, 160) if small else (640, 320))
     base = 320 * 160 if small else 640 * 320
     seconds = sum(MEASURED_S[p] for p in parts) * (w * h) / base
-    span = (f"about {seconds / 60:.1f} minutes" if seconds >= 90 else
-            f"about {seconds:.0f} s")  # fmt: skip
+    span = f"about {seconds / 60:.1f} minutes" if seconds >= 90 else f"about {seconds:.0f} s"
     note = (
         "" if args.protocol != "all" else "; the sweep is the slow part (--protocol table2: ~35 s)"
     )
@@ -74,8 +74,8 @@ def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.eval.run import run as run_eval
-    from viewcomp.cli import UsageError
     from viewcomp.commands._common import Log, check_output_folder, parse_size
 
     check_output_folder(args.output)
@@ -92,8 +92,9 @@ def run(args: argparse.Namespace) -> int:
         from viewcomp.rt.track.simtrack import tracked_walk
 
         log("audience: tracking the simulated walk (360 camera frames)")
-        walk = tracked_walk(progress=lambda i, n: log(f"audience: walk tracked {i}/{n}")
-                            if i % 120 == 0 else None)  # fmt: skip
+        walk = tracked_walk(
+            progress=lambda i, n: log(f"audience: walk tracked {i}/{n}") if i % 120 == 0 else None
+        )
     rep = run_eval(
         args.output,
         args.protocol,
@@ -113,16 +114,22 @@ def run(args: argparse.Namespace) -> int:
     if "zone_summary" in rep:
         for name, z in rep["zone_summary"].items():
             m, w = z["mean"], z["worst"]
-            print(f"audience {name}: mean dE 90 {m['pixel_90']:.2f}, centre "
-                  f"{m['pixel_centre']:.2f}, audience {m['pixel_audience']:.2f}, oracle "
-                  f"{m['oracle']:.2f}; worst 90 {w['pixel_90']:.2f}, audience "
-                  f"{w['pixel_audience']:.2f}")  # fmt: skip
+            print(
+                f"audience {name}: mean dE 90 {m['pixel_90']:.2f}, centre "
+                f"{m['pixel_centre']:.2f}, audience {m['pixel_audience']:.2f}, oracle "
+                f"{m['oracle']:.2f}; worst 90 {w['pixel_90']:.2f}, audience "
+                f"{w['pixel_audience']:.2f}"
+            )
     if "walk" in rep:
         s = rep["walk"]["summary"]["mean"]
-        print(f"walk: mean dE tracked {s['tracked']:.2f}, exact eye {s['exact']:.2f}, "
-              f"90 degrees {s['pixel_90']:.2f}")  # fmt: skip
+        print(
+            f"walk: mean dE tracked {s['tracked']:.2f}, exact eye {s['exact']:.2f}, "
+            f"90 degrees {s['pixel_90']:.2f}"
+        )
     if "sweep_checks" in rep:
-        print("sweep: all criteria hold" if rep["sweep_checks"]["all"] else "sweep: some fail",
-              rep["sweep_checks"])  # fmt: skip
+        print(
+            "sweep: all criteria hold" if rep["sweep_checks"]["all"] else "sweep: some fail",
+            rep["sweep_checks"],
+        )
     print(f"wrote {args.output}/report.md, report.json and plots ({rep['seconds']} s)")
     return 0

@@ -47,35 +47,55 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("calib", nargs="?", help="calibration bundle from `viewcomp calibrate`")
     p.add_argument("videos", nargs="*", metavar="VIDEO", help="video files or folders")
-    add_eye_arguments(p, angle_default=90.0, angle_note="; where playback starts",
-                      audience=True)  # fmt: skip
+    add_eye_arguments(p, angle_default=90.0, angle_note="; where playback starts", audience=True)
     p.add_argument("--monitor", type=int, default=0, help="monitor index (see --list-monitors)")
     p.add_argument("--list-monitors", action="store_true", help="list the monitors and exit")
     p.add_argument("--windowed", action="store_true", help="a window instead of fullscreen")
     p.add_argument("--size", help="window size WxH (windowed: default the calibration grid)")
     p.add_argument("--no-vsync", action="store_true", help="do not wait for the display refresh")
     p.add_argument("--loop", action="store_true", help="repeat the playlist until stopped")
-    p.add_argument("--osc", metavar="HOST:PORT",
-                   help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
+    p.add_argument(
+        "--osc", metavar="HOST:PORT", help="listen for OSC on UDP HOST:PORT (e.g. 127.0.0.1:9000)"
+    )
     p.add_argument("--no-stdin", action="store_true", help="do not read commands from stdin")
-    p.add_argument("--track-camera", metavar="SRC",
-                   help="follow the faces in camera SRC (see `viewcomp track`)")  # fmt: skip
-    p.add_argument("--track-faces", choices=["all", "nearest"], default="all",
-                   help="with --track-camera: compensate for every face seen at once (all, "
-                        "the default; pixel method) or for the nearest one")  # fmt: skip
+    p.add_argument(
+        "--track-camera",
+        metavar="SRC",
+        help="follow the faces in camera SRC (see `viewcomp track`)",
+    )
+    p.add_argument(
+        "--track-faces",
+        choices=["all", "nearest"],
+        default="all",
+        help="with --track-camera: compensate for every face seen at once (all, "
+        "the default; pixel method) or for the nearest one",
+    )
     add_tone_arguments(p)
-    p.add_argument("--eye-smooth", type=float, default=0.25,
-                   help="eye smoothing time constant, s (default 0.25; 0: instant)")  # fmt: skip
+    p.add_argument(
+        "--eye-smooth",
+        type=float,
+        default=0.25,
+        help="eye smoothing time constant, s (default 0.25; 0: instant)",
+    )
     p.add_argument("--step", type=float, default=2.0, help="degrees per arrow key (default 2)")
     p.add_argument("--overlay", action="store_true", help="start with the overlay shown")
     p.add_argument("--no-audio", action="store_true", help="play silently")
-    p.add_argument("--audio-device", default="default",
-                   help="ALSA PCM name (default: default)")  # fmt: skip
-    p.add_argument("--scale", choices=["auto", "linear", "nearest"], default="auto",
-                   help="filter when the window is not the grid's size (default auto: "
-                        "nearest for whole-number factors, else linear)")  # fmt: skip
+    p.add_argument("--audio-device", default="default", help="ALSA PCM name (default: default)")
+    p.add_argument(
+        "--scale",
+        choices=["auto", "linear", "nearest"],
+        default="auto",
+        help="filter when the window is not the grid's size (default auto: "
+        "nearest for whole-number factors, else linear)",
+    )
     p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--quiet", action="store_true", help="no log lines, only the summary")
+    _add_show_control(p)
+    p.set_defaults(run=run)
+
+
+def _add_show_control(p: argparse.ArgumentParser) -> None:
+    """The options of the show-control group."""
     show = p.add_argument_group("show control")
     show.add_argument(
         "--still-seconds",
@@ -95,9 +115,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="HOST:PORT",
         help="push /viewcomp/status to HOST:PORT every --feedback-every s",
     )
-    show.add_argument("--feedback-every", type=nonnegative, default=1.0, metavar="S",
-                      help="seconds between status pushes (default 1)")  # fmt: skip
-    p.set_defaults(run=run)
+    show.add_argument(
+        "--feedback-every",
+        type=nonnegative,
+        default=1.0,
+        metavar="S",
+        help="seconds between status pushes (default 1)",
+    )
 
 
 def _stdin_fd() -> int | None:
@@ -118,13 +142,26 @@ def _tracker(src: str | None, rig: object, all_faces: bool) -> tuple[object, ...
     return (TrackerThread(pipeline, all_faces),)
 
 
+def _norm_range(text: str) -> tuple[float, float]:
+    """``--norm-angle-range LO:HI`` (degrees) as checked by ``check_norm_range``."""
+    from viewcomp.rt.play.live import InputError, check_norm_range
+
+    lo, sep, hi = text.partition(":")
+    try:
+        bounds = (float(lo), float(hi)) if sep else None
+    except ValueError:
+        bounds = None
+    if bounds is None:
+        raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got {text!r}")
+    return check_norm_range(*bounds)
+
+
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.cli import UsageError
+    from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import (
         InputError,
         check_angle,
         check_eye,
-        check_norm_range,
         parse_host_port,
     )
     from viewcomp.rt.play.player import Player, PlayerError, PlayerOptions, list_monitors
@@ -137,24 +174,13 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if not args.calib or not args.videos:
             raise UsageError("give a calibration bundle and at least one video (or a folder)")
-        try:
-            osc = parse_host_port(args.osc) if args.osc else None
-            eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
-            angle = check_angle(args.angle)
-            feedback = parse_host_port(args.osc_feedback) if args.osc_feedback else None
-            lo, sep, hi = args.norm_angle_range.partition(":")
-            try:
-                bounds = (float(lo), float(hi)) if sep else None
-            except ValueError:
-                bounds = None
-            if bounds is None:
-                raise InputError(f"--norm-angle-range is LO:HI in degrees, e.g. 30:150; got "
-                                 f"{args.norm_angle_range!r}")  # fmt: skip
-            norm_range = check_norm_range(*bounds)
-            if args.feedback_every <= 0:
-                raise InputError("--feedback-every is a number of seconds > 0, e.g. 1")
-        except InputError as exc:
-            raise UsageError(str(exc)) from None
+        osc = parse_host_port(args.osc) if args.osc else None
+        eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
+        angle = check_angle(args.angle)
+        feedback = parse_host_port(args.osc_feedback) if args.osc_feedback else None
+        norm_range = _norm_range(args.norm_angle_range)
+        if args.feedback_every <= 0:
+            raise InputError("--feedback-every is a number of seconds > 0, e.g. 1")
         from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
         from viewcomp.calib.fit.calibrate import Calibration
 

@@ -26,8 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, help="the picture to write (.png)")
     add_eye_arguments(p, required=True, audience=True)
     add_tone_arguments(p, smooth=False)
-    p.add_argument("--frames", type=int, default=4, metavar="N",
-                   help="video: rows of the contact sheet, evenly spaced (default 4)")  # fmt: skip
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=4,
+        metavar="N",
+        help="video: rows of the contact sheet, evenly spaced (default 4)",
+    )
     p.set_defaults(run=run)
 
 
@@ -56,10 +61,10 @@ def run(args: argparse.Namespace) -> int:
 
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.eval.preview import METHOD_NAMES, predict, preview_picture
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.imageio import read_rgb8, write_png
-    from viewcomp.cli import UsageError
     from viewcomp.rt.media.frames import fit_rgb
     from viewcomp.rt.render.pipeline import is_image
 
@@ -97,20 +102,25 @@ def run(args: argparse.Namespace) -> int:
             angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
             where = f"{angle:.0f} deg, eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m"
             p = predict(comp, np.ascontiguousarray(rgb, dtype=np.uint8), eye, audience)
-            previews.append((f"seen at {where}" if not label else
-                             f"{label}, seen at {angle:.0f} deg", p))  # fmt: skip
+            previews.append(
+                (f"seen at {where}" if not label else f"{label}, seen at {angle:.0f} deg", p)
+            )
     if audience is not None and len(audience) > 1:
         who = f"an audience of {len(audience)} viewers (one row each)"
         what = f"over the {len(audience)} viewers"
     else:
         who, what = f"a viewer at {where}", f"at {angle:.0f} degrees"
-    title = (f"predicted by the calibration for {who}; {METHOD_NAMES[args.method]}, mean "
-             "CIEDE2000 vs the white screen")  # fmt: skip
+    title = (
+        f"predicted by the calibration for {who}; {METHOD_NAMES[args.method]}, mean "
+        "CIEDE2000 vs the white screen"
+    )
     write_png(out, preview_picture(previews, args.method, title))
     unc = np.mean([p.de_uncompensated for _, p in previews])
     com = np.mean([p.de_compensated for _, p in previews])
     frames = f", {len(images)} frames" if len(images) > 1 else ""
-    print(f"wrote {out}: predicted colour error {what}{frames} (mean): "
-          f"uncompensated dE {unc:.1f}, compensated ({METHOD_NAMES[args.method]}) "
-          f"dE {com:.1f}")  # fmt: skip
+    print(
+        f"wrote {out}: predicted colour error {what}{frames} (mean): "
+        f"uncompensated dE {unc:.1f}, compensated ({METHOD_NAMES[args.method]}) "
+        f"dE {com:.1f}"
+    )
     return 0

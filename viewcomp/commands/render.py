@@ -32,19 +32,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_eye_arguments(p, required=True, track=True, audience=True)
     add_tone_arguments(p)
-    p.add_argument("--backend", choices=["gl", "cpu"], default="gl",
-                   help="gl: the GLSL shader (default); cpu: the numpy reference")  # fmt: skip
-    p.add_argument("--identity", action="store_true",
-                   help="run the same pipeline with compensation off (A/B, timing)")  # fmt: skip
-    p.add_argument("--crf", type=finite, default=18,
-                   help="video quality (CRF of x264/x265/VP9/AV1, default 18)")  # fmt: skip
-    p.add_argument("--codec", default=None,
-                   help="video codec: libx264 (h264), libx265 (hevc), prores_ks (prores), "
-                   "dnxhd (dnxhr), hap, libvpx-vp9 (vp9), libsvtav1 (av1), ffv1 (default: "
-                   "libx264, libvpx-vp9 for .webm)")  # fmt: skip
-    p.add_argument("--profile", default=None,
-                   help="codec profile: ProRes hq (422 HQ, default), standard, lt, proxy, "
-                   "4444; DNxHR hq (default), sq, lb, hqx; HAP hap (default), hap_q")  # fmt: skip
+    p.add_argument(
+        "--backend",
+        choices=["gl", "cpu"],
+        default="gl",
+        help="gl: the GLSL shader (default); cpu: the numpy reference",
+    )
+    p.add_argument(
+        "--identity",
+        action="store_true",
+        help="run the same pipeline with compensation off (A/B, timing)",
+    )
+    p.add_argument(
+        "--crf",
+        type=finite,
+        default=18,
+        help="video quality (CRF of x264/x265/VP9/AV1, default 18)",
+    )
+    p.add_argument(
+        "--codec",
+        default=None,
+        help="video codec: libx264 (h264), libx265 (hevc), prores_ks (prores), "
+        "dnxhd (dnxhr), hap, libvpx-vp9 (vp9), libsvtav1 (av1), ffv1 (default: "
+        "libx264, libvpx-vp9 for .webm)",
+    )
+    p.add_argument(
+        "--profile",
+        default=None,
+        help="codec profile: ProRes hq (422 HQ, default), standard, lt, proxy, "
+        "4444; DNxHR hq (default), sq, lb, hqx; HAP hap (default), hap_q",
+    )
     p.add_argument("--preset", default=None, help="encoder preset, e.g. veryfast (x264)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -53,9 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.world.audience import parse_audience
-    from viewcomp.cli import UsageError
     from viewcomp.rt.media.formats import is_sequence_pattern
     from viewcomp.rt.render.pipeline import is_image, render_file
     from viewcomp.rt.render.tracks import constant_audience, constant_eye, load_angle_track
@@ -95,8 +112,10 @@ def run(args: argparse.Namespace) -> int:
         done = f"an image, {what}, {args.backend} backend, in {stats.seconds:.1f} s"
     elif is_sequence_pattern(args.output):
         folder = Path(args.output).parent
-        print(f"wrote {stats.frames} images to {folder}{os.sep} ({Path(args.output).name}, "
-              f"numbered from 0; no audio): {what}, {stats.fps:.1f} frames/s")  # fmt: skip
+        print(
+            f"wrote {stats.frames} images to {folder}{os.sep} ({Path(args.output).name}, "
+            f"numbered from 0; no audio): {what}, {stats.fps:.1f} frames/s"
+        )
         return 0
     else:
         done = f"{stats.frames} frames, {what}, {args.backend} backend, {stats.fps:.1f} frames/s"

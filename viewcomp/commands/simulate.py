@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from viewcomp.cli import UsageError
+from viewcomp.calib.errors import UsageError
 from viewcomp.commands._common import (
     add_force_argument,
     add_simulator_arguments,

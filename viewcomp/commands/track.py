@@ -27,27 +27,66 @@ def positive(text: str) -> float:
 def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
     """The tracking options shared with ``play --track-camera``: face model, timing, filter."""
     g = p.add_argument_group("tracking")
-    g.add_argument("--face-width", type=positive, default=0.15, metavar="M",
-                   help="width of a face's detector box, metres (default 0.15)")  # fmt: skip
-    g.add_argument("--hold", type=nonnegative, default=1.0, metavar="S",
-                   help="seconds a lost face's eye is held (default 1)")  # fmt: skip
-    g.add_argument("--ease", type=nonnegative, default=1.0, metavar="S",
-                   help="seconds to ease from a lost eye to the default (default 1)")  # fmt: skip
-    g.add_argument("--default-angle", type=float, default=90.0, metavar="DEG",
-                   help="the eye when nobody is seen: this viewing angle at the rig's [viewer] "
-                        "distance and height (default 90)")  # fmt: skip
-    g.add_argument("--default-eye", metavar="X,Y,Z",
-                   help="the eye when nobody is seen, metres")  # fmt: skip
-    g.add_argument("--min-cutoff", type=positive, default=2.0, metavar="HZ",
-                   help="One-Euro filter cutoff at rest, Hz (default 2)")  # fmt: skip
-    g.add_argument("--beta", type=nonnegative, default=5.0,
-                   help="One-Euro filter speed coefficient, Hz per m/s (default 5)")  # fmt: skip
-    g.add_argument("--near", type=positive, default=0.5, metavar="M",
-                   help="nearest face searched, metres from the camera (default 0.5)")  # fmt: skip
-    g.add_argument("--far", type=positive, default=4.0, metavar="M",
-                   help="farthest face searched, metres (default 4)")  # fmt: skip
-    g.add_argument("--fps", type=positive, default=30.0,
-                   help="frame rate of an image sequence (default 30)")  # fmt: skip
+    g.add_argument(
+        "--face-width",
+        type=positive,
+        default=0.15,
+        metavar="M",
+        help="width of a face's detector box, metres (default 0.15)",
+    )
+    g.add_argument(
+        "--hold",
+        type=nonnegative,
+        default=1.0,
+        metavar="S",
+        help="seconds a lost face's eye is held (default 1)",
+    )
+    g.add_argument(
+        "--ease",
+        type=nonnegative,
+        default=1.0,
+        metavar="S",
+        help="seconds to ease from a lost eye to the default (default 1)",
+    )
+    g.add_argument(
+        "--default-angle",
+        type=float,
+        default=90.0,
+        metavar="DEG",
+        help="the eye when nobody is seen: this viewing angle at the rig's [viewer] "
+        "distance and height (default 90)",
+    )
+    g.add_argument("--default-eye", metavar="X,Y,Z", help="the eye when nobody is seen, metres")
+    g.add_argument(
+        "--min-cutoff",
+        type=positive,
+        default=2.0,
+        metavar="HZ",
+        help="One-Euro filter cutoff at rest, Hz (default 2)",
+    )
+    g.add_argument(
+        "--beta",
+        type=nonnegative,
+        default=5.0,
+        help="One-Euro filter speed coefficient, Hz per m/s (default 5)",
+    )
+    g.add_argument(
+        "--near",
+        type=positive,
+        default=0.5,
+        metavar="M",
+        help="nearest face searched, metres from the camera (default 0.5)",
+    )
+    g.add_argument(
+        "--far",
+        type=positive,
+        default=4.0,
+        metavar="M",
+        help="farthest face searched, metres (default 4)",
+    )
+    g.add_argument(
+        "--fps", type=positive, default=30.0, help="frame rate of an image sequence (default 30)"
+    )
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -60,21 +99,38 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--camera", required=True, metavar="SRC",
-                   help="camera index (0, 1, ...), a video file, a folder of images or a "
-                        "glob ('frames/*.png')")  # fmt: skip
-    p.add_argument("--rig", required=True, metavar="FILE",
-                   help="the tracking camera's pose and intrinsics: a rig.toml, a capture "
-                        "set folder or a calibration bundle")  # fmt: skip
-    p.add_argument("--faces", choices=["nearest", "all"], default="nearest",
-                   help="publish the nearest viewer (default) or all of them")  # fmt: skip
-    p.add_argument("--osc", metavar="HOST:PORT",
-                   help="also send OSC to HOST:PORT (e.g. 127.0.0.1:9000)")  # fmt: skip
+    p.add_argument(
+        "--camera",
+        required=True,
+        metavar="SRC",
+        help="camera index (0, 1, ...), a video file, a folder of images or a "
+        "glob ('frames/*.png')",
+    )
+    p.add_argument(
+        "--rig",
+        required=True,
+        metavar="FILE",
+        help="the tracking camera's pose and intrinsics: a rig.toml, a capture "
+        "set folder or a calibration bundle",
+    )
+    p.add_argument(
+        "--faces",
+        choices=["nearest", "all"],
+        default="nearest",
+        help="publish the nearest viewer (default) or all of them",
+    )
+    p.add_argument(
+        "--osc", metavar="HOST:PORT", help="also send OSC to HOST:PORT (e.g. 127.0.0.1:9000)"
+    )
     p.add_argument("--no-stdout", action="store_true", help="write no lines on stdout")
-    p.add_argument("--realtime", action="store_true",
-                   help="pace a video file or image sequence at its frame rate")  # fmt: skip
-    p.add_argument("--seconds", type=positive, default=None,
-                   help="stop after this many seconds of frames")  # fmt: skip
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace a video file or image sequence at its frame rate",
+    )
+    p.add_argument(
+        "--seconds", type=positive, default=None, help="stop after this many seconds of frames"
+    )
     p.add_argument("--quiet", action="store_true", help="no summary on stderr")
     add_tracker_arguments(p)
     p.set_defaults(run=run)
@@ -82,7 +138,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def tracker_options(args: argparse.Namespace, rig: object) -> object:
     """The :class:`viewcomp.rt.track.run.TrackOptions` for parsed arguments and a rig."""
-    from viewcomp.cli import UsageError
+    from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import InputError, check_angle, check_eye
     from viewcomp.rt.track.run import TrackOptions
     from viewcomp.rt.track.tracker import TrackerConfig
@@ -105,13 +161,18 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         min_cutoff=args.min_cutoff,
         beta=args.beta,
     )
-    return TrackOptions(face_width=args.face_width, near=args.near, far=args.far,
-                        fps=args.fps, realtime=getattr(args, "realtime", False),
-                        tracker=config)  # fmt: skip
+    return TrackOptions(
+        face_width=args.face_width,
+        near=args.near,
+        far=args.far,
+        fps=args.fps,
+        realtime=getattr(args, "realtime", False),
+        tracker=config,
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.cli import UsageError
+    from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import InputError, parse_host_port
     from viewcomp.rt.track.publish import LinePublisher, OscPublisher, Publisher
     from viewcomp.rt.track.run import build, load_tracking_rig

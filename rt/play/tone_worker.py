@@ -1,0 +1,88 @@
+"""The tone worker: ``Compensation`` calls (the tone map, and the paper method's model) on a
+worker thread, the newest request winning, so that frames never wait for them."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from viewcomp.calib.comp.compensation import Compensation, FrameParams
+from viewcomp.calib.model.reference import View
+from viewcomp.calib.world.audience import Audience
+
+
+def copy_view(eye: View) -> View:
+    """An eye as a float64 copy; an audience (immutable) as it is."""
+    return eye if isinstance(eye, Audience) else np.array(eye, np.float64)
+
+
+class ToneWorker:
+    """``Compensation`` calls on a worker thread; the newest request wins.
+
+    ``compute`` runs one call synchronously (under the same lock); ``submit`` hands a request
+    to the thread; ``latest`` returns the newest result with the eye it was computed for.
+    The thread keeps its duty cycle at or below one half: after a call of cost c it rests
+    until max(period, 2 c) has passed since the call began.
+    """
+
+    def __init__(self, comp: Compensation, period: float = 0.1) -> None:
+        self.comp = comp
+        self.period = float(period)
+        self.calls = 0
+        self.busy_seconds = 0.0
+        self._lock = threading.Lock()
+        self._cond = threading.Condition()
+        self._request: tuple[np.ndarray, View, float] | None = None
+        self._result: tuple[FrameParams, View] | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-tone", daemon=True)
+        self._thread.start()
+
+    def compute(self, thumb: np.ndarray, eye: View, t: float) -> FrameParams:
+        """One synchronous call; also becomes the latest result."""
+        start = time.perf_counter()
+        with self._lock:
+            p = self.comp(thumb, eye, t)
+            self._result = (p, copy_view(eye))
+            self.calls += 1
+            self.busy_seconds += time.perf_counter() - start
+        return p
+
+    def submit(self, thumb: np.ndarray, eye: View, t: float) -> None:
+        """Ask for a call with these inputs (replaces a request not yet started)."""
+        with self._cond:
+            self._request = (thumb, copy_view(eye), t)
+            self._cond.notify()
+
+    def latest(self) -> tuple[FrameParams, View] | None:
+        """The newest (FrameParams, eye) or None before the first call."""
+        return self._result
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            with self._cond:
+                while self._request is None and not self._stop.is_set():
+                    self._cond.wait(0.1)
+                req, self._request = self._request, None
+            if req is None:
+                continue
+            start = time.perf_counter()
+            try:
+                self.compute(*req)
+            except Exception:  # keep the last good parameters; the frame goes on
+                import logging
+
+                logging.getLogger(__name__).exception("tone map computation failed")
+            cost = time.perf_counter() - start
+            if self._stop.wait(max(self.period - cost, cost)):
+                return
+
+    def stop(self) -> None:
+        """Stop the thread (a call in progress finishes first)."""
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)

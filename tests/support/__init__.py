@@ -1,0 +1,6 @@
+"""Helpers of the tests and the benchmarks (not part of viewcomp).
+
+- ``synthetic``: synthetic, plausible runtime models and test frames (no GL).
+- ``calibrations``: small real calibrations, simulated (a second or so).
+- ``fuzzing``: fuzzed live input for a running player: valid and malformed OSC and stdin.
+"""
