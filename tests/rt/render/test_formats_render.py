@@ -16,10 +16,10 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.support.synthetic import SyntheticCompensation, make_test_video, synthetic_model
 from viewcomp.rt.media.formats import ffmpeg_encoders
 from viewcomp.rt.render.pipeline import render_file
 from viewcomp.rt.render.tracks import constant_angle
-from viewcomp.rt.testing import SyntheticCompensation, make_test_video, synthetic_model
 
 SECONDS, RATE = 10.0, 10
 FRAMES = round(SECONDS * RATE)

@@ -15,12 +15,12 @@ import av
 import numpy as np
 import pytest
 
+from tests.support.synthetic import SyntheticCompensation, make_test_video, synthetic_model
 from viewcomp.rt.media import formats
 from viewcomp.rt.media.averrors import describe_av_error, mp4_missing_index
 from viewcomp.rt.media.formats import CONTAINERS, FormatError, plan_output
 from viewcomp.rt.render.pipeline import render_file
 from viewcomp.rt.render.tracks import constant_angle
-from viewcomp.rt.testing import SyntheticCompensation, make_test_video, synthetic_model
 
 PAIRINGS = "the working pairings: .mp4"
 

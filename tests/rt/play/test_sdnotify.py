@@ -13,7 +13,7 @@ import pytest
 
 from viewcomp.rt.play.sdnotify import Notifier
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 UNIT = ROOT / "examples/viewcomp-player.service"
 
 

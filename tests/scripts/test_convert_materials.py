@@ -12,7 +12,7 @@ import pytest
 
 from viewcomp.calib.sim.materials import load_material
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NAMES = ("W1", "b1", "W2", "b2", "W3", "b3")
 
 
