@@ -65,7 +65,7 @@ from viewcomp.calib.world.rig import CaptureSpec, Rig
 # simulator's noise (CameraPhysics.frames = 4) is the noise of a capture as it lands on the
 # projector grid; rectifying camera frames onto that grid interpolates ~1.4 camera pixels per
 # projector pixel, which halves the noise variance, so 2 camera frames give the same noise per
-# projector pixel (measured: tests/test_geocal.py, evaluation parity).
+# projector pixel (measured: tests/calib/geo/test_geocal.py, evaluation parity).
 CAMERA_FRAMES = 2
 
 

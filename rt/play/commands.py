@@ -202,13 +202,25 @@ def check_norm_range(lo: float, hi: float) -> tuple[float, float]:
     return lo, hi
 
 
-def _show_command(key: str, args: Sequence[Any], name: str) -> ShowCommand:
-    """A show-control command from its keyword and arguments (already numbers)."""
+def _show_command(key: str, args: Sequence[Any], name: str) -> ShowCommand | None:
+    """A show-control command from its keyword and arguments (already numbers); None for a
+    trigger's release.
+
+    A trigger (pause, resume, next, previous) takes no argument, or one: 1 acts and 0 does
+    nothing, because the buttons of show-control consoles (QLab, TouchDesigner, Resolume)
+    send 1 when pressed and 0 when released."""
     fixed = next((c for k, c in SHOW_ADDRESSES.values() if k == key), None)
     if fixed is not None:
-        if args:
-            raise InputError(f"{name} takes no arguments, got {len(args)}")
-        return fixed
+        if not args:
+            return fixed
+        if len(args) == 1:
+            press = _number(args[0], f"{name}'s argument")
+            if press in (0.0, 1.0):
+                return fixed if press == 1.0 else None
+        raise InputError(
+            f"{name} takes no argument, or one: 1 (a button pressed: act) or 0 (released: "
+            f"nothing), got {', '.join(f'{a!r:.20}' for a in args)}"
+        )
     if len(args) != 1:
         what = "seconds" if key == "seek" else "1 for black, 0 for the picture"
         raise InputError(f"{name} takes one number ({what}), got {len(args)}")
@@ -271,13 +283,13 @@ def parse_line(line: str) -> Command | None:
 
 def parse_osc_message(
     address: str, args: Sequence[Any], sender: tuple[str, int] | None = None
-) -> Command:
+) -> Command | None:
     """An OSC message (address, arguments) -> a command.
 
     ``/viewcomp/angle`` takes one number (int, float or double), ``/viewcomp/angle/norm``
     one in [0, 1], ``/viewcomp/eye`` three, ``/viewcomp/eyes`` 3k (an audience);
-    ``/viewcomp/seek`` one (seconds), ``/viewcomp/blackout`` one (0 or 1), the other
-    show-control addresses none.
+    ``/viewcomp/seek`` one (seconds), ``/viewcomp/blackout`` one (0 or 1), the triggers
+    (pause, resume, next, previous) none or one: 1 acts, 0 (a button's release) returns None.
     ``/viewcomp/status`` is answered to ``sender`` (the datagram's source address).
 
     Raises:
@@ -329,7 +341,10 @@ def parse_osc_packet(
             continue
         msg = timed.message
         try:
-            out.append(parse_osc_message(msg.address, list(msg.params), sender))
+            cmd = parse_osc_message(msg.address, list(msg.params), sender)
         except InputError as exc:
             out.append(exc)
+            continue
+        if cmd is not None:  # a button's release asks for nothing
+            out.append(cmd)
     return out

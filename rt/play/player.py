@@ -70,6 +70,7 @@ from viewcomp.rt.play.playlist import (
     expand_playlist,
     is_still,
 )
+from viewcomp.rt.play.sdnotify import Notifier
 from viewcomp.rt.play.show_control import SEEK_STEP, SHOW_TYPES, ShowControl
 from viewcomp.rt.play.window import WindowLifecycle, list_monitors
 
@@ -130,6 +131,7 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
         self._init_window()
         # the schedule (main thread): the frame waiting to be shown and the file it is from
         self._failure: BaseException | None = None
+        self._notify = Notifier()  # systemd's readiness and watchdog; a no-op outside it
         self._next: Any = None
         self._origin: float | None = None  # set when the file's first frame is scheduled
         self._floor = -math.inf  # a file's first frame is due no earlier than this
@@ -170,7 +172,9 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
             self._start_threads()
             self._loop()
         finally:
+            self._notify.stopping()
             self._shutdown()
+            self._notify.close()
             restore()
         self.stats.seconds = time.monotonic() - t0
         self.stats.inputs = self.hub.snapshot()
@@ -258,6 +262,7 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
                 gap = 1e3 * (now - last_iter)
                 self.stats.max_loop_gap_ms = max(self.stats.max_loop_gap_ms, gap)
             last_iter = now
+            self._notify.watchdog(now)  # a hung loop stops pinging: systemd restarts it
             if glfw.window_should_close(self._win) or (deadline is not None and now > deadline):
                 break
             self._apply_inputs()
@@ -357,6 +362,7 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
                 self._fps_now = 0.9 * self._fps_now + 0.1 / (t - s.last_present)
         if s.first_present is None:
             s.first_present = t
+            self._notify.ready(f"playing {path.name}")  # the projector shows the picture
         s.last_present = t
         if redraw:
             s.redrawn += 1

@@ -653,7 +653,7 @@ def test_the_table_covers_every_command() -> None:
     from viewcomp.cli import COMMANDS
 
     covered = {c.args[0] for c in CASES}
-    assert set(COMMANDS) - covered == {"play"}  # play writes nothing; tests/test_player.py
+    assert set(COMMANDS) - covered == {"play"}  # play writes nothing; tests/rt/play/test_player.py
 
 
 # ----------------------------------------------------------------------- --force

@@ -268,7 +268,7 @@ def test_exposure_units_linear_and_log2() -> None:
 
 def test_capture_hdr_without_a_response_estimates_it_from_the_bracket(tmp_path: Path) -> None:
     """`capture --hdr` on hardware without --response or --rig no longer stops: the response
-    is estimated from a bracket (tests/test_procedure_devices.py); here the CLI gets past
+    is estimated from a bracket (tests/calib/hw/test_procedure_devices.py); here the CLI gets past
     the options and fails only at the camera, with exit 2."""
     args = ["capture", str(tmp_path / "c"), "--camera", "7", "--monitor", "0", "--hdr", "--yes"]
     with mock.patch.object(cv2, "VideoCapture", lambda index: ExposureCapture(True, True)):

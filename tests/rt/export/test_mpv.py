@@ -126,7 +126,7 @@ def run_hook(ctx: Any, text: str, frame: np.ndarray, angle: float = 90.0) -> np.
 
 
 def assert_like_the_shader(got: np.ndarray, want: np.ndarray, what: str) -> None:
-    """The GL compensator's bound (tests/test_gl_compensate.py): <= 1 level in 99.9 % of
+    """The GL compensator's bound (tests/rt/gl/test_gl_compensate.py): <= 1 level in 99.9 % of
     pixel-channels and <= 3 anywhere."""
     d = np.abs(got.astype(np.int16) - want.astype(np.int16))
     print(f"{what}: max {d.max()} levels, {(d > 1).sum()} of {d.size} pixel-channels over 1")

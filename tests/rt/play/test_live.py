@@ -248,6 +248,8 @@ def test_line_reader_from_a_pipe() -> None:
         ("pause", Pause()), ("RESUME", Resume()), ("seek 12.5", Seek(12.5)), ("next", Next()),
         ("previous", Previous()), ("blackout 1", Blackout(True)), ("blackout 0", Blackout(False)),
         ("norm 0.25", SetAngleNorm(0.25)), ("status", Status()),
+        # a console's button: 1 when pressed (act), 0 when released (nothing)
+        ("pause 1", Pause()), ("pause 0", None), ("next 1", Next()), ("previous 0", None),
     ],
 )  # fmt: skip
 def test_parse_line_show_control(line: str, want: object) -> None:
@@ -255,8 +257,8 @@ def test_parse_line_show_control(line: str, want: object) -> None:
 
 
 @pytest.mark.parametrize(
-    "line", ["pause 1", "seek", "seek -1", "seek x", "blackout", "blackout 2", "norm 1.5",
-             "norm", "status now", "next 2"],
+    "line", ["pause 2", "pause 0.5", "pause 1 1", "seek", "seek -1", "seek x", "blackout",
+             "blackout 2", "norm 1.5", "norm", "status now", "next 2"],
 )  # fmt: skip
 def test_parse_line_show_control_rejects(line: str) -> None:
     with pytest.raises(InputError):
@@ -269,7 +271,11 @@ def test_osc_show_control_and_status_reply_address() -> None:
     assert parse_osc_message("/viewcomp/blackout", [1], sender) == Blackout(True)
     assert parse_osc_message("/viewcomp/angle/norm", [0.5], sender) == SetAngleNorm(0.5)
     assert parse_osc_message("/viewcomp/status", [], sender) == Status(sender)
-    bad = [("/viewcomp/pause", [1]), ("/viewcomp/seek", []), ("/viewcomp/blackout", [0.5]),
+    assert parse_osc_message("/viewcomp/pause", [1], sender) == Pause()  # a button pressed
+    assert parse_osc_message("/viewcomp/pause", [0], sender) is None  # released
+    assert parse_osc_message("/viewcomp/next", [1.0], sender) == Next()
+    bad = [("/viewcomp/pause", [2]), ("/viewcomp/pause", ["1"]), ("/viewcomp/resume", [1, 0]),
+           ("/viewcomp/seek", []), ("/viewcomp/blackout", [0.5]),
            ("/viewcomp/angle/norm", [-0.1])]  # fmt: skip
     for address, args in bad:
         with pytest.raises(InputError):
@@ -283,3 +289,17 @@ def test_norm_maps_onto_the_range_and_show_commands_are_not_eye_commands() -> No
     assert eye_to_polar(state.target)[0] == pytest.approx(60.0)
     with pytest.raises(TypeError):
         state.apply(Pause())  # type: ignore[arg-type]
+
+
+def test_a_button_release_in_a_packet_is_no_command() -> None:
+    """A console sends /viewcomp/next 1 on press and 0 on release, often in one bundle: one
+    Next, and no error for the release."""
+    from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
+    from pythonosc.osc_message_builder import OscMessageBuilder
+
+    bundle = OscBundleBuilder(IMMEDIATELY)
+    for value in (1, 0):
+        msg = OscMessageBuilder("/viewcomp/next")
+        msg.add_arg(value)
+        bundle.add_content(msg.build())
+    assert parse_osc_packet(bundle.build().dgram) == [Next()]

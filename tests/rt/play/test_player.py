@@ -393,3 +393,40 @@ def test_measure_720p_at_1280x720(display: str, tmp_path: Path) -> None:
     print(f"\n720p 30 fps -> 640x320 grid -> 1280x720 Xvfb: {stats.summary()}; load average "
           f"before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f} (2 cores)")  # fmt: skip
     assert stats.presented + stats.dropped == 10 * RATE
+
+
+@pytest.mark.gl
+def test_systemd_hears_ready_after_the_first_frame_and_watchdog_pings(
+    display: str, cal: Any, short_clip: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Under a unit of Type=notify (NOTIFY_SOCKET, WATCHDOG_USEC set) the player says READY=1
+    once its first frame is presented, not before; pings the watchdog from its loop; and
+    says STOPPING=1 when it ends."""
+    from viewcomp.rt.play.player import Player
+
+    path = str(tmp_path / "notify")
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    sock.bind(path)
+    sock.setblocking(False)
+    monkeypatch.setenv("NOTIFY_SOCKET", path)
+    monkeypatch.setenv("WATCHDOG_USEC", "200000")  # pings every 0.1 s
+    monkeypatch.delenv("WATCHDOG_PID", raising=False)
+    heard: list[tuple[int, bytes]] = []
+
+    def drain(presented: int) -> None:
+        while True:
+            try:
+                heard.append((presented, sock.recv(4096)))
+            except BlockingIOError:
+                return
+
+    def on_frame(player: Any, f: Any) -> None:
+        drain(f.index)  # called before the frame is swapped onto the screen
+
+    with sock:
+        stats = Player(cal, [short_clip], _options(max_seconds=3.0), on_frame=on_frame).run()
+        drain(stats.presented)
+    ready = [i for i, m in heard if m.startswith(b"READY=1")]
+    assert len(ready) == 1 and ready[0] >= 1, heard[:5]  # after the first swap, once
+    assert any(m == b"WATCHDOG=1" for _, m in heard)
+    assert heard[-1][1] == b"STOPPING=1"
