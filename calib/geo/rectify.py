@@ -104,11 +104,11 @@ def gray_code_suffices(gc: GrayCode) -> bool:
     """Whether the Gray code alone places enough pixels for the map: the camera resolves every
     plane and at least :data:`GRAY_SUFFICES` of the lit pixels decode with every bit reliable.
 
-    Measured at 1.2 camera px per projector px (tests/calib/geo/test_geocal.py's world, seeds 1-3): the
-    map from the Gray code's whole pixels is 0.008-0.009 camera px RMS from the truth and its
-    lens k2 0.018-0.034 (truth 0.02); from the phase's sub-pixel positions 0.011-0.012 px and
-    k2 0.049-0.080. At 0.6 camera px per projector px the Gray code alone decodes 28% of the
-    pixels and the phase is needed (tests/calib/geo/test_phaseshift.py).
+    Measured at 1.2 camera px per projector px (tests/calib/geo/test_geocal.py's world, seeds
+    1-3): the map from the Gray code's whole pixels is 0.008-0.009 camera px RMS from the truth
+    and its lens k2 0.018-0.034 (truth 0.02); from the phase's sub-pixel positions 0.011-0.012
+    px and k2 0.049-0.080. At 0.6 camera px per projector px the Gray code alone decodes 28% of
+    the pixels and the phase is needed (tests/calib/geo/test_phaseshift.py).
     """
     decoded = np.count_nonzero(gc.column >= 0) / max(int(np.count_nonzero(gc.lit)), 1)
     return bool(gc.resolved().all() and decoded >= GRAY_SUFFICES)
