@@ -114,9 +114,10 @@ def run_hook(ctx: Any, text: str, frame: np.ndarray, angle: float = 90.0) -> np.
             prog["angle"].value = angle
         if "u_flip_y" in prog:
             prog["u_flip_y"].value = 0
-        fbo = ctx.simple_framebuffer((w, h), components=4)
+        color = ctx.renderbuffer((w, h), 4)  # released below: the session context is shared
+        fbo = ctx.framebuffer(color_attachments=[color])
         vao = ctx.vertex_array(prog, [])
-        objects += [fbo, vao]
+        objects += [color, fbo, vao]
         fbo.use()
         vao.render(moderngl.TRIANGLES, vertices=3)
         return np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(h, w, 3)
