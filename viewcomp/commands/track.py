@@ -27,8 +27,15 @@ def positive(text: str) -> float:
 def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
     """The tracking options shared with ``play --track-camera``: face model, timing, filter."""
     g = p.add_argument_group("tracking")
+    g.add_argument("--detector", choices=["yunet", "cascade"], default="yunet",
+                   help="yunet (default): distance from the eyes' separation; cascade: the "
+                        "old LBP fallback, distance from the box size (biased)")  # fmt: skip
+    g.add_argument("--ipd", type=positive, default=None, metavar="M",
+                   help="viewers' interpupillary distance, metres (default: the rig's "
+                        "[tracker] ipd, else 0.063)")  # fmt: skip
     g.add_argument("--face-width", type=positive, default=0.15, metavar="M",
-                   help="width of a face's detector box, metres (default 0.15)")  # fmt: skip
+                   help="--detector cascade only: width of a face's box, metres "
+                        "(default 0.15)")  # fmt: skip
     g.add_argument("--hold", type=nonnegative, default=1.0, metavar="S",
                    help="seconds a lost face's eye is held (default 1)")  # fmt: skip
     g.add_argument("--ease", type=nonnegative, default=1.0, metavar="S",
@@ -55,7 +62,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "track",
         help="follow viewers with a camera; publish their eye positions (stdout, OSC)",
         description="Detect faces in a camera's frames, estimate each viewer's eye position "
-        "from the face's place and size and the tracking camera of the rig ([tracker], or "
+        "from its eye landmarks (their separation at an adult interpupillary distance, "
+        "corrected for head turn) and the tracking camera of the rig ([tracker], or "
         "[camera] without one), smooth it (One-Euro filter) and publish it live.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -97,6 +105,11 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         raise UsageError(f"the default eye: {exc}") from None
     if args.near >= args.far:
         raise UsageError(f"--near ({args.near:g} m) must be less than --far ({args.far:g} m)")
+    from viewcomp.rt.track.anatomy import IPD
+
+    ipd = getattr(args, "ipd", None)
+    if ipd is None:
+        ipd = getattr(rig, "tracker_ipd", None) or IPD
     config = TrackerConfig(
         faces=getattr(args, "faces", "nearest"),
         default_eye=default,
@@ -105,7 +118,8 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         min_cutoff=args.min_cutoff,
         beta=args.beta,
     )
-    return TrackOptions(face_width=args.face_width, near=args.near, far=args.far,
+    return TrackOptions(detector_kind=getattr(args, "detector", "yunet"), ipd=float(ipd),
+                        face_width=args.face_width, near=args.near, far=args.far,
                         fps=args.fps, realtime=getattr(args, "realtime", False),
                         tracker=config)  # fmt: skip
 
