@@ -8,8 +8,9 @@ turned by a known yaw.
 
 A flat photograph turned in 3-D would be a poor head: its nose does not move against its eyes
 (a real head's does: that is how a turn is seen), so the photograph gets a relief: the face
-plane (tilted by the photograph's own head turn, ``Person.yaw``) plus a nose ridge rising to
-the nose tip ``nose_depth`` IPD in front of the eyes (:mod:`viewcomp.rt.track.anatomy`'s
+plane (tilted by the photograph's own head turn, ``Person.yaw``), rounded as a cylinder of
+82 mm radius (the far cheek recedes when the head turns), plus a nose ridge rising to the nose
+tip ``nose_depth`` IPD in front of the eyes (:mod:`viewcomp.rt.track.anatomy`'s
 model). The relief is forward-mapped (splatted, far to near) into the frame; light is scaled
 by ``gain`` (dim rooms), and an ``occluder`` rectangle (a hand, a cup: fractions of the face's
 size) may be drawn over the face.
@@ -27,6 +28,9 @@ import numpy as np
 
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH
+
+
+HEAD_RADIUS = 1.3  # the head's roundness: a cylinder of this radius, in IPDs (82 mm)
 
 
 @dataclass
@@ -78,7 +82,12 @@ def _relief(
                      np.where(y >= yn, 0.35 + 0.65 * t,
                               np.exp(-0.5 * ((y - yn) / (0.12 * ipd)) ** 2)))  # fmt: skip
     across = np.exp(-0.5 * ((x - cx) / (0.28 * ipd)) ** 2)
-    return -x * np.tan(yaw0) + b * along * across
+    # the head's roundness: a vertical cylinder of radius 1.3 IPD (82 mm) through the eyes,
+    # so the far cheek recedes and the outline moves when the head turns
+    r = HEAD_RADIUS * ipd
+    u = np.clip(np.abs(x * np.cos(yaw0)) / r, 0.0, 0.999)  # across the face plane
+    round_ = r * (np.sqrt(1.0 - u**2) - np.sqrt(1.0 - (0.5 * ipd / r) ** 2))
+    return -x * np.tan(yaw0) + b * along * across + round_ / np.cos(yaw0)
 
 
 def head_frame(device: Device, eye: np.ndarray) -> np.ndarray:
@@ -150,6 +159,7 @@ def render_person(
     y = -(vv - mid[1]) * s
     nose = np.array([(person.nose[0] - mid[0]) * s, -(person.nose[1] - mid[1]) * s])
     z = _relief(x, y, nose, person.yaw, ipd, nose_depth)
+    alpha[np.abs(x * np.cos(person.yaw)) > 0.98 * HEAD_RADIUS * ipd] = 0.0  # beyond the head
     c, sn = np.cos(turn), np.sin(turn)
     xr, zr = x * c + z * sn, -x * sn + z * c
     side, up, back = head_frame(device, e)
