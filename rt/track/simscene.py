@@ -29,7 +29,6 @@ import numpy as np
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH
 
-
 HEAD_RADIUS = 1.3  # the head's roundness: a cylinder of this radius, in IPDs (82 mm)
 
 
