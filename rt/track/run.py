@@ -358,7 +358,7 @@ def load_tracking_rig(path: str) -> Rig:
 
 def default_options(rig: Rig) -> TrackOptions:
     """``viewcomp track``'s defaults for ``rig``: the default eye is its [viewer] at 90
-    degrees."""
+    degrees, the interpupillary distance its ``[tracker] ipd`` (0.063 m without)."""
     eye = rig.viewer.eye(90.0)
     tracker = TrackerConfig(default_eye=(float(eye[0]), float(eye[1]), float(eye[2])))
-    return TrackOptions(tracker=tracker)
+    return TrackOptions(tracker=tracker, ipd=rig.tracker_ipd or IPD)
