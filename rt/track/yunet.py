@@ -119,7 +119,7 @@ class YuNetDetector:
         x0, y0 = int(max(0, cx - side)), int(max(0, cy - side))
         x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))
         k = c.refine_box_px / max(box[2], 1.0)
-        crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_CUBIC)
+        crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
         size = (crop.shape[1], crop.shape[0])
         if size != self._crop_size:
             self.crop_net.setInputSize(size)
