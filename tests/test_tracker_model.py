@@ -83,3 +83,6 @@ def test_ipd_from_rig_and_command_line(tmp_path: Path, capsys):
     assert main([*args, "--ipd", "0.070"]) == 0
     z70 = float(capsys.readouterr().out.splitlines()[-1].split()[3])
     assert z70 / z63 == pytest.approx(70 / 63, rel=0.02)
+    with pytest.raises(SystemExit) as exit_info:
+        main([*args, "--ipd", "63"])  # millimetres by mistake
+    assert exit_info.value.code == 2 and "metres" in capsys.readouterr().err

@@ -114,7 +114,7 @@ class YuNetDetector:
         (frame pixels), or None when the crop does not find it."""
         c = self.config
         h, w = frame.shape[:2]
-        side = 2.0 * max(box[2], box[3])
+        side = 2.0 * max(box[2], box[3])  # half the crop (a tighter one reads turns worse)
         cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
         x0, y0 = int(max(0, cx - side)), int(max(0, cy - side))
         x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))

@@ -110,6 +110,9 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
     ipd = getattr(args, "ipd", None)
     if ipd is None:
         ipd = getattr(rig, "tracker_ipd", None) or IPD
+    elif not 0.04 <= ipd <= 0.09:
+        raise UsageError(f"--ipd {ipd:g}: the interpupillary distance is in metres, 0.04..0.09 "
+                         "(adults about 0.063)")  # fmt: skip
     config = TrackerConfig(
         faces=getattr(args, "faces", "nearest"),
         default_eye=default,
