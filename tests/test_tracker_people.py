@@ -193,23 +193,36 @@ def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
         assert s["found"] == 1.0 and s["within"] >= 0.8, (cond, s)
 
 
-def crowd(
-    k: int, frames: int = 12, seed: int = 0
-) -> tuple[np.ndarray, list[dict[int, np.ndarray]]]:
-    """k people (k <= 3) walking slowly side by side at 1.5..3 m, tracked with ``--faces
-    all``: true eyes (frames, k, 3) and per frame the published tracks seen in it
-    ({track id: eye (3,)})."""
+def side_by_side(k: int, frames: int = 12) -> np.ndarray:
+    """k people (k <= 3) walking slowly side by side at 1.5..3 m, 10 frames/s: true eyes
+    (frames, k, 3)."""
+    t = np.arange(frames) / 10.0
+    starts = np.array([[-0.6, 0.15, 1.6], [0.5, 0.2, 2.4], [0.05, 0.1, 3.0]])[:k]
+    return starts[None] + 0.25 * t[:, None, None] * np.array([1.0, 0.0, -0.3])
+
+
+def crossing(frames: int = 20) -> np.ndarray:
+    """Two people crossing, 10 frames/s: one from the left at 1.4 m, one from the right at
+    2.6 m, 1 m/s each way, passing each other in the camera's view half-way."""
+    t = np.arange(frames) / 10.0 - 1.0
+    a = np.stack([0.8 * t, np.full_like(t, 0.15), np.full_like(t, 1.4)], axis=-1)
+    b = np.stack([-1.2 * t, np.full_like(t, 0.2), np.full_like(t, 2.6)], axis=-1)
+    return np.stack([a, b], axis=1)
+
+
+def crowd(truth: np.ndarray, seed: int = 0) -> list[dict[int, np.ndarray]]:
+    """People at ``truth`` (frames, k, 3) (k <= 3: astronaut, hopper, luispedro), drawn
+    near over far, tracked with ``--faces all`` at 10 frames/s: per frame the tracks seen in
+    it ({track id: eye (3,)})."""
     dev = walk_camera()
     back = background(dev.resolution, seed)
     rng = np.random.default_rng(seed)
-    who = people()[:k]
-    t = np.arange(frames) / 10.0
-    starts = np.array([[-0.6, 0.15, 1.6], [0.5, 0.2, 2.4], [0.05, 0.1, 3.0]])[:k]
-    truth = starts[None] + 0.25 * t[:, None, None] * np.array([1.0, 0.0, -0.3])
+    p = np.asarray(dev.position)
+    who = people()[: truth.shape[1]]
     images = []
     for row in truth:
         f = back
-        for i in np.argsort(-row[:, 2]):  # far to near
+        for i in np.argsort(-np.linalg.norm(row - p, axis=1)):  # far to near
             f = render_person(f, dev, who[i], row[i])
         images.append(finish(f, rng))
     opts = TrackOptions(tracker=TrackerConfig(faces="all"))
@@ -217,11 +230,10 @@ def crowd(
     seen = []
     for fr in pipeline.source:
         published = pipeline.step(fr).eyes
-        tracks = {tr.id: tr.eye for tr in pipeline.tracker.tracks if tr.seen == fr.t}
         assert len(published) == max(1, len(pipeline.tracker.tracks))
-        seen.append(tracks)
+        seen.append({tr.id: tr.eye for tr in pipeline.tracker.tracks if tr.seen == fr.t})
     pipeline.close()
-    return truth, seen
+    return seen
 
 
 def separate_share(truth: np.ndarray, seen: list[dict[int, np.ndarray]]) -> float:
@@ -252,8 +264,17 @@ def separate_share(truth: np.ndarray, seen: list[dict[int, np.ndarray]]) -> floa
 @pytest.mark.slow
 @pytest.mark.parametrize("k", [2, 3])
 def test_two_and_three_viewers_are_separate_and_stable(k):
-    truth, seen = crowd(k)
-    assert separate_share(truth, seen) >= 0.95
+    truth = side_by_side(k)
+    assert separate_share(truth, crowd(truth)) >= 0.95
+
+
+@pytest.mark.slow
+def test_two_viewers_crossing_keep_their_identities():
+    """Two people cross (the nearer passes in front of the farther): each keeps its track
+    id in every frame where both are seen; the farther one is hidden in at most the frame
+    where they overlap (measured: 19 of 20 frames separate and stable)."""
+    truth = crossing()
+    assert separate_share(truth, crowd(truth)) >= 0.9
 
 
 if __name__ == "__main__":  # the table of the report
@@ -263,5 +284,8 @@ if __name__ == "__main__":  # the table of the report
         print(f"{name:10s} {cond:10s} found {s['found']:.2f} within {s['within']:.2f} "
               f"median ratio {s['median_ratio']:.3f}")  # fmt: skip
     for k in (2, 3):
-        truth, seen = crowd(k)
-        print(f"{k} viewers: separate and stable in {separate_share(truth, seen):.2f} of frames")
+        truth = side_by_side(k)
+        share = separate_share(truth, crowd(truth))
+        print(f"{k} viewers: separate and stable in {share:.2f} of frames")
+    share = separate_share(crossing(), crowd(crossing()))
+    print(f"2 viewers crossing: separate and stable in {share:.2f} of frames")
