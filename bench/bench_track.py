@@ -97,7 +97,8 @@ def one_round(images: list[np.ndarray], empty_frames: int) -> dict[str, object]:
     stream = io.TextIOWrapper(os.fdopen(w, "wb", buffering=0), write_through=True)
     line_pub = LinePublisher(stream)
     osc_pub = OscPublisher(*listener.address)
-    pipeline = Pipeline(PacedCamera(images), dev, TrackOptions(), [line_pub, osc_pub])  # type: ignore[arg-type]
+    options = TrackOptions(detector_kind="cascade")  # its stages (full-frame searches) are timed
+    pipeline = Pipeline(PacedCamera(images), dev, options, [line_pub, osc_pub])  # type: ignore[arg-type]
     sent: list[tuple[int, float]] = []  # (frame index, capture time) of each published eye
     stage = {"detect_ms": [], "rest_ms": [], "full_frames": []}
     detect = pipeline.detector.detect
@@ -167,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     n_empty = round(args.empty * FPS)
     images = [render_frame(dev, np.zeros((0, 3)), back, rng) for _ in range(n_empty)]
     images += render_walk(dev, eyes, seed=0)
-    pipeline = Pipeline(PacedCamera(images[:1]), dev, TrackOptions())
+    pipeline = Pipeline(PacedCamera(images[:1]), dev, TrackOptions(detector_kind="cascade"))
     result = {
         "bench": "track",
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),

@@ -37,7 +37,7 @@ _SECTIONS = {
     "viewer": _VIEWER_KEYS,
     "capture": _CAPTURE_KEYS,
 }
-_OPTIONAL = {"principal_point", "distortion", "height"}
+_OPTIONAL = {"principal_point", "distortion", "height", "ipd"}
 _SPACES = ("projector", "camera")
 
 
@@ -213,7 +213,8 @@ class Rig:
     """Everything rig.toml says. ``viewer.height`` is filled with the camera's y if None.
 
     ``tracker`` is the optional ``[tracker]`` section (the camera that follows the audience,
-    see :func:`tracking_camera`); None when rig.toml has none.
+    see :func:`tracking_camera`); None when rig.toml has none. ``tracker_ipd``: its optional
+    ``ipd`` key, the viewers' interpupillary distance in metres (None: the tracker's 0.063).
     """
 
     projector: Device
@@ -221,6 +222,7 @@ class Rig:
     viewer: Viewer
     capture: CaptureSpec
     tracker: Device | None = None
+    tracker_ipd: float | None = None
 
     def __post_init__(self) -> None:
         if self.viewer.height is None:
@@ -416,14 +418,28 @@ class _Parser:
             viewer=Viewer(distance=float(dist), height=height),
             capture=CaptureSpec(space=space),
             tracker=self.tracker(d.get(TRACKER_SECTION)),
+            tracker_ipd=self.tracker_ipd(d.get(TRACKER_SECTION)),
         )
 
     def tracker(self, t: Any) -> Device | None:
         """The optional ``[tracker]`` section: a device with the keys of ``[projector]``."""
         if t is None:
             return None
-        self.check_keys(TRACKER_SECTION, t, _DEVICE_KEYS)
-        return Device(**self.device(TRACKER_SECTION, t))
+        self.check_keys(TRACKER_SECTION, t, (*_DEVICE_KEYS, "ipd"))
+        return Device(**self.device(TRACKER_SECTION, {k: v for k, v in t.items() if k != "ipd"}))
+
+    def tracker_ipd(self, t: Any) -> float | None:
+        """The optional ``[tracker] ipd``: metres, 0.04..0.09 (adults 0.054..0.074)."""
+        if t is None or "ipd" not in t:
+            return None
+        v = t["ipd"]
+        if not (_is_number(v) and 0.04 <= v <= 0.09):
+            raise self.error(
+                TRACKER_SECTION,
+                f"ipd is the viewers' interpupillary distance in metres (0.04..0.09, "
+                f"typically 0.063), got {_fmt(v)}",
+            )
+        return float(v)
 
 
 def rig_from_dict(d: dict[str, Any], source: str = "rig.toml") -> Rig:
@@ -524,6 +540,8 @@ def rig_to_toml(rig: Rig) -> str:
             lines.append(text)
     if rig.tracker is not None:
         lines += ["", f"[{TRACKER_SECTION}]", *_tracker_lines(rig.tracker)]
+        if rig.tracker_ipd is not None:
+            lines.append(f"ipd = {_toml_value(float(rig.tracker_ipd))}")
     return "\n".join(lines) + "\n"
 
 

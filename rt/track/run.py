@@ -20,12 +20,14 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.world.rig import Device, Rig, tracking_camera
+from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH, head_pose
 from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
 from viewcomp.rt.track.publish import Publisher
 from viewcomp.rt.track.scale import FaceTemplate, ScaleConfig
 from viewcomp.rt.track.source import ArraySource, Frame, FrameSource, SourceError
 from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
+from viewcomp.rt.track.yunet import YuNetConfig, YuNetDetector
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +38,11 @@ EYE_LIMIT = 50.0  # metres: estimates farther than this (or behind the screen) a
 class TrackOptions:
     """Everything ``viewcomp track`` can set. Metres, seconds, Hz.
 
+    ``detector``: ``"yunet"`` (the default: faces and landmarks, the distance from the eyes'
+    separation, :mod:`viewcomp.rt.track.anatomy`, with ``ipd`` the viewers' interpupillary
+    distance and ``nose_depth`` the nose tip's depth in IPDs) or ``"cascade"`` (the fallback:
+    the LBP cascade's box taken as ``face_width`` metres wide, biased by how the cascade
+    draws boxes; the options below up to ``background_search`` are the cascade's).
     ``near``/``far``: the distances (along the camera's axis) at which faces are searched;
     ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate;
     ``templates``: size tracked faces by their own near view (:mod:`viewcomp.rt.track.scale`)
@@ -44,6 +51,10 @@ class TrackOptions:
     processed as fast as possible stays on one thread, so its output is reproducible).
     """
 
+    detector_kind: str = "yunet"
+    ipd: float = IPD
+    nose_depth: float = NOSE_DEPTH
+    yunet: YuNetConfig = field(default_factory=YuNetConfig)
     face_width: float = FACE_WIDTH
     eye_row: float = EYE_ROW
     near: float = 0.5
@@ -104,23 +115,36 @@ class Pipeline:
             self.device = camera_for_frames(device, source.size)
         except ValueError as exc:
             raise SourceError(f"{source.src}: {exc}") from None
+        self.tracker = EyeTracker(options.tracker)
+        self.publishers = list(publishers)
+        self.stats = Stats()
+        self._pool: ThreadPoolExecutor | None = None
+        self._pending: Future[np.ndarray] | None = None
+        self.yunet: YuNetDetector | None = None
+        if options.detector_kind == "yunet":
+            if not options.ipd > 0:
+                raise ValueError(f"the interpupillary distance must be > 0 m, got {options.ipd}")
+            self.yunet = YuNetDetector(options.yunet)
+            log.info("face detector: YuNet (%s), distance from the eyes at IPD %.1f mm",
+                     self.yunet.path.name, 1000 * options.ipd)  # fmt: skip
+            return
+        if options.detector_kind != "cascade":
+            raise ValueError(f'detector is "yunet" or "cascade", got {options.detector_kind!r}')
+        log.warning("face detector: the LBP cascade FALLBACK; its distance comes from the "
+                    "box size (%.3f m per box) and is biased, use YuNet for measurement",
+                    options.face_width)  # fmt: skip
         lo, hi = size_range(self.device.focal(), options.face_width, options.near, options.far)
         config = replace(options.detector or DetectorConfig(), min_px=lo, max_px=hi)
         self.detector = FaceDetector(config)
-        self.tracker = EyeTracker(options.tracker)
         # Live: the periodic full-frame search (newcomers, while faces are tracked) runs on
         # a worker thread with a detector of its own, so no frame waits for it.
         background = options.background_search
         if background is None:
             background = bool(getattr(source, "live", False)) or options.realtime
-        self._pool: ThreadPoolExecutor | None = None
-        self._pending: Future[np.ndarray] | None = None
         self._since_full = 0  # frames since the last background search started
         if background:
             self._background = FaceDetector(replace(config))
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewcomp-faces")
-        self.publishers = list(publishers)
-        self.stats = Stats()
 
     def _sized(self, gray: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         """``boxes`` with each tracked face's size and place from its template, where it has
@@ -168,17 +192,37 @@ class Pipeline:
             self._since_full = 0
         return hints, False
 
-    def step(self, frame: Frame) -> FrameResult:
-        """Detect, size, estimate, filter and publish one frame."""
+    def _landmark_eyes(self, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        """YuNet: the eyes (N, 3) metres from the landmarks and the boxes (N, 4) pixels of
+        the faces between ``near`` / 1.5 and 1.5 ``far`` from the camera."""
+        assert self.yunet is not None
+        faces = self.yunet.detect(frame.image)
+        o = self.options
+        pose = head_pose(self.device, faces.landmarks, o.ipd, o.nose_depth)
+        ok = (pose.range >= o.near / 1.5) & (pose.range <= o.far * 1.5)
+        return pose.eyes[ok], faces.boxes[ok]
+
+    def _box_eyes(self, frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The cascade fallback: eyes (N, 3) from the boxes' size, the boxes as found and as
+        sized by the templates, and the grey frame."""
         gray = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
         hints, periodic = self._hints(frame)
         boxes = self.detector.detect(frame.image, hints, gray=gray, periodic=periodic)
         sized = self._sized(gray, boxes) if self.options.templates else boxes
         raw = eyes_from_boxes(self.device, sized, self.options.face_width, self.options.eye_row)
+        return raw, boxes, sized, gray
+
+    def step(self, frame: Frame) -> FrameResult:
+        """Detect, range, filter and publish one frame."""
+        if self.yunet is not None:
+            raw, sized = self._landmark_eyes(frame)
+            boxes, gray = sized, None
+        else:
+            raw, boxes, sized, gray = self._box_eyes(frame)
         ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
         raw, boxes, sized = raw[ok], boxes[ok], sized[ok]
         eyes = self.tracker.update(raw, sized, frame.t)
-        if self.options.templates:
+        if self.options.templates and gray is not None:
             self._keep_templates(gray, boxes, frame.t)
         sent = False
         for p in self.publishers:
@@ -315,7 +359,7 @@ def load_tracking_rig(path: str) -> Rig:
 
 def default_options(rig: Rig) -> TrackOptions:
     """``viewcomp track``'s defaults for ``rig``: the default eye is its [viewer] at 90
-    degrees."""
+    degrees, the interpupillary distance its ``[tracker] ipd`` (0.063 m without)."""
     eye = rig.viewer.eye(90.0)
     tracker = TrackerConfig(default_eye=(float(eye[0]), float(eye[1]), float(eye[2])))
-    return TrackOptions(tracker=tracker)
+    return TrackOptions(tracker=tracker, ipd=rig.tracker_ipd or IPD)

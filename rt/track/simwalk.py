@@ -1,9 +1,9 @@
 """What the tracking camera sees: a face photograph placed in 3-D at known eye positions.
 
 The face is scikit-image's astronaut (``skimage.data.astronaut()``), cut out with a soft
-elliptical mask (hair, face, chin) and pasted as a flat card facing the camera: a face whose
-box is ``face_width`` metres wide at depth Z appears f W / Z pixels wide, its eyes' midpoint
-at the projection of the eye (:func:`viewcomp.rt.track.pose.boxes_from_eyes`). It is
+elliptical mask (hair, face, chin) and drawn as a 2.5-D head facing the camera, placed by her
+hand-located eyes at a 63 mm interpupillary distance (:mod:`viewcomp.rt.track.simscene`; it
+was placed by the cascade's box before, which hid that convention's bias). It is
 composited on a noisy, textured grey background, so the detector sees a realistic frame of
 the tracking camera; the truth (the eye positions) is known exactly.
 
@@ -29,6 +29,7 @@ from viewcomp.calib.io.atomic import atomic_path, write_text_atomic
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.calib.world.rig import Device, Rig, default_rig, rig_to_toml
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, boxes_from_eyes
+from viewcomp.rt.track.simscene import Person, finish, render_person
 
 # The astronaut's face in the 512x512 photograph: the detector's box width (pixels; mean of
 # the LBP cascade's boxes 99, 104 and 101 from detectMultiScale(gray, f, 3) for f = 1.05,
@@ -105,6 +106,16 @@ def background(size: tuple[int, int], seed: int = 0) -> np.ndarray:
     return cv2.resize(coarse, (w, h), interpolation=cv2.INTER_CUBIC)
 
 
+def astronaut_person() -> Person:
+    """The astronaut as a :class:`~viewcomp.rt.track.simscene.Person`: pupils and nose tip
+    located by hand on the 512x512 photograph (not by a detector)."""
+    from skimage.data import astronaut
+
+    image = np.ascontiguousarray(astronaut()[:, :, ::-1])
+    return Person.annotated("astronaut", image, ((204.0, 101.0), (246.0, 104.0)),
+                            (222.0, 126.0), (*_CUT_CENTRE, *_CUT_AXES))  # fmt: skip
+
+
 def render_frame(
     device: Device,
     eyes: np.ndarray,
@@ -113,7 +124,36 @@ def render_frame(
     face_width: float = FACE_WIDTH,
     noise: float = 0.01,
 ) -> np.ndarray:
-    """One frame of ``device`` with a face at each eye (K, 3) metres, over ``back``.
+    """One frame of ``device`` with the astronaut's head at each eye (K, 3) metres, over
+    ``back``: placed by her eyes at a 63 mm interpupillary distance, facing the camera
+    (:func:`viewcomp.rt.track.simscene.render_person`); ``face_width`` is unused (the
+    cascade's box convention no longer places the test face).
+
+    Returns:
+        (h, w, 3) uint8 BGR at the device's resolution, with Gaussian noise of ``noise``
+        (0..1 units) added; heads nearer the camera cover those behind.
+    """
+    person = astronaut_person()
+    out = back.copy()
+    e = np.asarray(eyes, np.float64).reshape(-1, 3)
+    depth = np.linalg.norm(e - np.asarray(device.position), axis=1)
+    for i in np.argsort(-depth):  # far to near
+        if np.all(np.isfinite(device.project(e[i][None]))):  # in front of the camera
+            out = render_person(out, device, person, e[i])
+    return finish(out, rng, noise)
+
+
+def render_card_frame(
+    device: Device,
+    eyes: np.ndarray,
+    back: np.ndarray,
+    rng: np.random.Generator,
+    face_width: float = FACE_WIDTH,
+    noise: float = 0.01,
+) -> np.ndarray:
+    """One frame of ``device`` with a flat face at each eye (K, 3) metres, over ``back``,
+    sized by the cascade's box convention (a box ``face_width`` wide; the eyes at ``EYE_ROW``
+    of it): for the cascade fallback's own tests (its templates), never to judge ranging.
 
     Returns:
         (h, w, 3) uint8 BGR at the device's resolution, with Gaussian noise of ``noise``
@@ -144,13 +184,16 @@ def render_walk(
     eyes: np.ndarray,
     seed: int = 0,
     face_width: float = FACE_WIDTH,
+    by_box: bool = False,
 ) -> list[np.ndarray]:
-    """One frame per row of ``eyes`` ((n, 3), or (n, K, 3) for K viewers at once)."""
+    """One frame per row of ``eyes`` ((n, 3), or (n, K, 3) for K viewers at once); ``by_box``:
+    flat faces placed by the cascade's box convention (:func:`render_card_frame`)."""
     rng = np.random.default_rng(seed)
     back = background(device.resolution, seed)
     e = np.asarray(eyes, np.float64)
     e = e[:, None, :] if e.ndim == 2 else e
-    return [render_frame(device, row, back, rng, face_width) for row in e]
+    draw = render_card_frame if by_box else render_frame
+    return [draw(device, row, back, rng, face_width) for row in e]
 
 
 def write_walk(

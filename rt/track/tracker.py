@@ -1,10 +1,13 @@
 """Viewers over time: detections -> smoothed eyes, held when lost, then the default eye.
 
 Each viewer is a :class:`Track`: the eye estimated from its face, smoothed by a One-Euro
-filter (:mod:`viewcomp.rt.track.filter`) and the box where its face was last seen (the
-detector's hint for the next frame). A new frame's eyes are matched to the tracks, nearest
-first, within ``gate`` metres; an unmatched eye starts a track; a track not seen for
-``hold`` seconds ends.
+filter (:mod:`viewcomp.rt.track.filter`) of its own, a velocity and the box where its face was
+last seen (the detector's hint for the next frame). A new frame's eyes are assigned to the
+tracks' *predicted* eyes (last eye + velocity x time since seen) by the Hungarian method on
+distance (``scipy.optimize.linear_sum_assignment``: the least total distance, so two viewers
+who cross keep their identities where a nearest-first choice could swap them), a pair farther
+than ``gate`` metres is not a match; an unmatched eye starts a track (a viewer entering); a
+track not seen for ``hold`` seconds ends (a viewer leaving).
 
 What is published (:meth:`EyeTracker.update`):
 
@@ -64,6 +67,12 @@ class Track:
     seen: float
     index: int = -1
     template: Any = None
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def predict(self, t: float, horizon: float = 0.5) -> np.ndarray:
+        """(3,) the eye expected at time t: the last eye moved on by the velocity for at
+        most ``horizon`` seconds (a held viewer is not extrapolated far)."""
+        return self.eye + self.velocity * min(max(t - self.seen, 0.0), horizon)
 
 
 def _smoothstep(s: float) -> float:
@@ -91,28 +100,32 @@ class EyeTracker:
         return np.asarray([t.box for t in self.tracks], np.float64).reshape(-1, 4)
 
     def _match(self, eyes: np.ndarray, boxes: np.ndarray, t: float) -> None:
+        from scipy.optimize import linear_sum_assignment
+
         c = self.config
-        free = list(range(len(eyes)))
-        pairs = sorted(
-            (float(np.linalg.norm(eyes[i] - tr.eye)), i, k)
-            for k, tr in enumerate(self.tracks)
-            for i in free
-        )
-        used_t: set[int] = set()
         used_e: set[int] = set()
-        for dist, i, k in pairs:
-            if dist > c.gate or i in used_e or k in used_t:
-                continue
-            used_e.add(i)
-            used_t.add(k)
-            tr = self.tracks[k]
-            if t - tr.seen > c.hold:  # back after a gap: no smoothing from where it was
-                tr.filter.reset()
-            tr.eye = tr.filter(eyes[i], t)
-            tr.box = boxes[i].copy()
-            tr.seen = t
-            tr.index = i
-        for i in free:
+        if len(eyes) and self.tracks:
+            pred = np.asarray([tr.predict(t) for tr in self.tracks])
+            cost = np.linalg.norm(eyes[:, None, :] - pred[None, :, :], axis=2)  # (N, K)
+            gated = np.where(cost <= c.gate, cost, 1e6)  # a pair beyond the gate is no match
+            rows, cols = linear_sum_assignment(gated)
+            for i, k in zip(rows.tolist(), cols.tolist(), strict=True):
+                if cost[i, k] > c.gate:
+                    continue
+                used_e.add(i)
+                tr = self.tracks[k]
+                if t - tr.seen > c.hold:  # back after a gap: no smoothing from where it was
+                    tr.filter.reset()
+                    tr.velocity = np.zeros(3)
+                before, dt = tr.eye, t - tr.seen
+                tr.eye = tr.filter(eyes[i], t)
+                if 0.0 < dt <= c.hold:  # smoothed velocity of the filtered eye, m/s
+                    v = (tr.eye - before) / dt
+                    tr.velocity = 0.5 * tr.velocity + 0.5 * v
+                tr.box = boxes[i].copy()
+                tr.seen = t
+                tr.index = i
+        for i in range(len(eyes)):
             if i not in used_e:
                 f = OneEuroFilter(c.min_cutoff, c.beta, c.d_cutoff)
                 self.tracks.append(Track(self._next_id, f, f(eyes[i], t), boxes[i].copy(), t, i))

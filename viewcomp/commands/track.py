@@ -28,11 +28,26 @@ def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
     """The tracking options shared with ``play --track-camera``: face model, timing, filter."""
     g = p.add_argument_group("tracking")
     g.add_argument(
+        "--detector",
+        choices=["yunet", "cascade"],
+        default="yunet",
+        help="yunet (default): distance from the eyes' separation; cascade: the "
+        "old LBP fallback, distance from the box size (biased)",
+    )
+    g.add_argument(
+        "--ipd",
+        type=positive,
+        default=None,
+        metavar="M",
+        help="viewers' interpupillary distance, metres (default: the rig's "
+        "[tracker] ipd, else 0.063)",
+    )
+    g.add_argument(
         "--face-width",
         type=positive,
         default=0.15,
         metavar="M",
-        help="width of a face's detector box, metres (default 0.15)",
+        help="--detector cascade only: width of a face's box, metres (default 0.15)",
     )
     g.add_argument(
         "--hold",
@@ -94,7 +109,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "track",
         help="follow viewers with a camera; publish their eye positions (stdout, OSC)",
         description="Detect faces in a camera's frames, estimate each viewer's eye position "
-        "from the face's place and size and the tracking camera of the rig ([tracker], or "
+        "from its eye landmarks (their separation at an adult interpupillary distance, "
+        "corrected for head turn) and the tracking camera of the rig ([tracker], or "
         "[camera] without one), smooth it (One-Euro filter) and publish it live.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -153,6 +169,16 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         raise UsageError(f"the default eye: {exc}") from None
     if args.near >= args.far:
         raise UsageError(f"--near ({args.near:g} m) must be less than --far ({args.far:g} m)")
+    from viewcomp.rt.track.anatomy import IPD
+
+    ipd = getattr(args, "ipd", None)
+    if ipd is None:
+        ipd = getattr(rig, "tracker_ipd", None) or IPD
+    elif not 0.04 <= ipd <= 0.09:
+        raise UsageError(
+            f"--ipd {ipd:g}: the interpupillary distance is in metres, 0.04..0.09 "
+            "(adults about 0.063)"
+        )
     config = TrackerConfig(
         faces=getattr(args, "faces", "nearest"),
         default_eye=default,
@@ -162,6 +188,8 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         beta=args.beta,
     )
     return TrackOptions(
+        detector_kind=getattr(args, "detector", "yunet"),
+        ipd=float(ipd),
         face_width=args.face_width,
         near=args.near,
         far=args.far,

