@@ -122,6 +122,10 @@ def run_hook(ctx: Any, text: str, frame: np.ndarray, angle: float = 90.0) -> np.
         vao.render(moderngl.TRIANGLES, vertices=3)
         return np.frombuffer(fbo.read(components=3, alignment=1), np.uint8).reshape(h, w, 3)
     finally:
+        # the default framebuffer first, as Compensator.release does: moderngl re-binds its
+        # current framebuffer after making the next one, and a deleted name there is a GL
+        # error in whatever test uses the shared context next
+        (ctx.screen or ctx.detect_framebuffer(0)).use()
         for obj in reversed(objects):
             obj.release()
 
