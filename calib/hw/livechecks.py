@@ -120,17 +120,18 @@ class LiveChecks:
             self._colour(sub, rel, name, lin)
         if name == "chessboard":
             self._chessboard(sub, rel, lin)
+        still = rel
         if name.startswith("graycode_") and name[9:].isdigit():
             if int(name[9:]) % 2 == 0:
                 self.pending[sub] = (rel, lin, clipped)
                 return
             if sub in self.pending:  # a plane + its inverse: the whole frame lit
-                first, plane, plane_clipped = self.pending.pop(sub)
+                still, plane, plane_clipped = self.pending.pop(sub)
                 lin = lin + plane
                 clipped = _either(clipped, plane_clipped)
-                rel = f"{first} + {name}"
+                rel = f"{still} + {name}"
         if name != "graycode_black":
-            self._against_latest(sub, rel, lin, clipped)
+            self._against_latest(sub, rel, lin, clipped, still)
 
     def _first_gray(self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None) -> None:
         black = self.black.get(sub, np.zeros_like(lin))
@@ -194,9 +195,12 @@ class LiveChecks:
         return shift
 
     def _against_latest(
-        self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None
+        self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None, still: str
     ) -> None:
-        """Refuse a capture whose frame lies more than MOVE_LIMIT_PX from the latest gray's."""
+        """Refuse a capture whose frame lies more than MOVE_LIMIT_PX from the latest gray's;
+        once it matches, the camera is known to have been in place at ``still`` (``rel``, or
+        for a plane + its inverse the plane: a move between the two, half in the sum, may
+        pass here and is caught at the next capture)."""
         ref_rel, ref = self.latest[sub]
         d = self._shift(sub, rel, frame_edges(lin, self.region[sub], clipped), ref).distance
         if d > MOVE_LIMIT_PX:
@@ -205,7 +209,7 @@ class LiveChecks:
                 f"it: the camera moved (or was bumped) after {self.still[sub]}; fix it, lock "
                 "zoom and focus, and capture again"
             )
-        self.still[sub] = rel
+        self.still[sub] = still
 
     def moved(self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None = None) -> None:
         """Check gray shown again (``lin`` (H, W, 3) linear, ``clipped`` (H, W) bool or None)
