@@ -28,8 +28,10 @@ from viewcomp.calib.geo.framematch import (
     lit_region,
 )
 from viewcomp.calib.geo.graycode import GrayCode, lit_mask
+from viewcomp.calib.io.checks import MASK_LIMIT, SATURATION_LIMIT
 
 REFERENCE = "gray"  # the reference of a set other than the real screen's
+TABLE1 = ("black", "gray", "red", "green", "blue", "ramp")  # refused by check_captures when clipped
 COVERAGE_CELLS = (16, 8)  # every cell of this grid over the projector image must decode
 
 
@@ -156,10 +158,13 @@ class MoveCheck:
                 "in the wrong order or mislabelled, or the projector was off; capture again",
             )
         reference = self._reference(caps, name)
-        if reference is None:
-            return
+        clipped = _clipped(caps, name, img)
+        share = 0.0 if clipped is None else float(clipped[self.region].mean())
+        limit = MASK_LIMIT if caps.sub == self.screen.sub else SATURATION_LIMIT
+        if reference is None or (name in TABLE1 and share > limit):
+            return  # a capture clipped this much hides its frame; check_captures names it
         ref_rel, ref_edges = reference
-        shift = frame_shift(ref_edges, frame_edges(img, self.region, _clipped(caps, name, img)))
+        shift = frame_shift(ref_edges, frame_edges(img, self.region, clipped))
         if shift.match < MIN_MATCH:
             error = FitError(
                 caps.rel(name),

@@ -14,7 +14,7 @@ import numpy as np
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.captures import Captures, channel_mean
-from viewcomp.calib.geo.framematch import LIT_FRACTION, LIT_PERCENTILE
+from viewcomp.calib.geo.framematch import LIT_PERCENTILE
 from viewcomp.calib.io.patterns import graycode_patterns
 
 BIT_CONTRAST = 0.08  # |pattern - inverse| / (white - black) below which a bit is unreliable
@@ -50,15 +50,13 @@ def graycode_names(w: int, h: int) -> list[str]:
 
 
 def lit_mask(white: np.ndarray, black: np.ndarray, rel: str) -> tuple[np.ndarray, float]:
-    """(Hc, Wc) bool where the projector lights the screen (white - black above
-    :data:`~viewcomp.calib.geo.framematch.LIT_FRACTION` of its 97th percentile), and that
-    percentile. Raises FitError if nothing is lit.
+    """(Hc, Wc) bool where the projector lights the screen (white - black above a quarter of
+    its 97th percentile), and that percentile. Raises FitError if nothing is lit.
 
-    The 97th percentile and a tenth of it: a glossy screen's highlight of the projector's lens
-    (measured materials: up to 4 % of the camera image) sets a higher percentile, and a broad
-    lobe leaves the frame's sides at 0.18 of this one (measured: bluebook); with a quarter of
-    the 99.5th the mask shrank to the highlight (4.6 % of the image instead of 31 % for green
-    plastic) and the Gray code was left undecoded around it."""
+    The 97th, not a higher one: a glossy screen's highlight of the projector's lens (measured
+    materials: up to 4 % of the camera image) sets a higher percentile; with the 99.5th the
+    mask shrank to the highlight (4.6 % of the image instead of 31 % for green plastic) and
+    the Gray code was left undecoded around it."""
     rng = white - black
     top = float(np.percentile(rng, LIT_PERCENTILE))
     if top <= 0.02:
@@ -67,7 +65,7 @@ def lit_mask(white: np.ndarray, black: np.ndarray, rel: str) -> tuple[np.ndarray
             f"the projector is not visible (white - black is at most {top:.3f} in linear units): "
             "point the camera at the projected image, raise the exposure, and capture again",
         )
-    return rng > LIT_FRACTION * top, top
+    return rng > 0.25 * top, top
 
 
 def decode_graycode(
