@@ -145,7 +145,8 @@ def frame_shift(reference: FrameEdges, image: FrameEdges) -> Shift:
     ky = np.fft.fftfreq(h)[:, None]
     kx = np.fft.rfftfreq(wd)[None, :]
     for _ in range(2):  # re-centre on the estimate: the parabola is exact near its vertex
-        cs = np.fft.irfft2(cross * np.exp(2j * np.pi * (ky * dy + kx * dx)), s=a.shape) / norm
+        ramp = np.exp(2j * np.pi * ky * dy) * np.exp(2j * np.pi * kx * dx)  # (h, 1) x (1, w)
+        cs = np.fft.irfft2(cross * ramp, s=a.shape) / norm
         dy += _vertex(cs[-1, 0], cs[0, 0], cs[1, 0])
         dx += _vertex(cs[0, -1], cs[0, 0], cs[0, 1])
         match = max(match, float(cs[0, 0]))
