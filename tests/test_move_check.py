@@ -14,15 +14,18 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.captures import Captures
 from viewcomp.calib.geo.checks import MoveCheck
+from viewcomp.calib.geo.framematch import MIN_MATCH, frame_edges, frame_shift, lit_region
 from viewcomp.calib.geo.graycode import decode_graycode
 from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
 from viewcomp.calib.hw.devices import SimulatedRig
+from viewcomp.calib.hw.plan import capture_plan
 from viewcomp.calib.hw.procedure import run_capture
 from viewcomp.calib.io.captureset import (
     OPTIONAL,
@@ -176,6 +179,57 @@ def _first_grabs(kind: str, materials_dir: Path | None, hdr: bool, tmp: Path) ->
     _capture(dev, tmp / f"still-{kind}-{hdr}", hdr, counting, log)
     _GRABS[(kind, hdr)] = at
     return at
+
+
+# --- the comparison and the plan -------------------------------------------------------------
+
+
+def _frame_image(dx: float, highlight: str) -> tuple[np.ndarray, np.ndarray]:
+    """A (180, 320, 3) capture: a dim lit frame on a dark surround, moved by ``dx`` px (by
+    warpAffine: the truth), with a bright highlight of one shape or another at the centre;
+    and its clipped pixels."""
+    img = np.full((180, 320, 3), 0.004, np.float32)
+    img[40:140, 60:260] = 0.05
+    y, x = np.mgrid[0:180, 0:320]
+    r = np.hypot(x - 160.0, y - 90.0)
+    if highlight == "spot":
+        img += (1.5 * np.exp(-((r / 3.0) ** 2)))[..., None]
+    else:  # a ring, as a pattern dark at the highlight's centre leaves it
+        img += (1.5 * np.exp(-(((r - 5.0) / 2.0) ** 2)))[..., None]
+    img = cv2.GaussianBlur(img, (0, 0), 0.8)
+    m = np.float32([[1, 0, dx], [0, 1, 0]])
+    img = cv2.warpAffine(img, m, (320, 180), flags=cv2.INTER_CUBIC)
+    img += np.random.default_rng(int(dx * 10)).normal(0, 0.001, img.shape).astype(np.float32)
+    clipped = np.any(img >= 1.0, axis=2)
+    return np.minimum(img, 1.0), clipped
+
+
+def test_a_highlight_that_changes_shape_is_not_a_move_and_a_move_is_measured() -> None:
+    ref, ref_clipped = _frame_image(0.0, "spot")
+    lit = lit_region(ref)
+    reference = frame_edges(ref, lit, ref_clipped)
+    still = frame_shift(reference, frame_edges(*_frame_image(0.0, "ring")[:1], lit))
+    assert still.distance < 0.1 and still.match > MIN_MATCH
+    img, clipped = _frame_image(1.5, "ring")
+    moved = frame_shift(reference, frame_edges(img, lit, clipped))
+    assert moved.dx == pytest.approx(1.5, abs=0.1) and abs(moved.dy) < 0.1
+    jitter = frame_shift(reference, frame_edges(*_frame_image(0.3, "ring")[:1], lit))
+    assert jitter.dx == pytest.approx(0.3, abs=0.1)
+
+
+def test_the_plan_shows_gray_again_but_never_between_a_plane_and_its_inverse() -> None:
+    plan = capture_plan(*SIZE)
+    again = [i for i, s in enumerate(plan) if s.check_only]
+    assert again and all(plan[i].name.startswith("gray (again") for i in again)
+    gray = next(s.pattern for s in plan if s.name == "gray")
+    for i in again:
+        assert np.array_equal(plan[i].pattern, gray)
+        before, after = plan[i - 1].name, plan[i + 1].name
+        assert plan[i + 1].sub == plan[i].sub  # not a stage's last: the procedure shows it then
+        if before.startswith("graycode_") and before[9:].isdigit():
+            assert int(before[9:]) % 2 == 1, (before, after)
+    gaps = np.diff([i for i, s in enumerate(plan) if s.name == "gray" or s.check_only])
+    assert gaps.max() <= 8  # every few captures (the white stage's gray is shown at its end)
 
 
 # --- capture: a still camera passes ------------------------------------------------------------
