@@ -42,8 +42,10 @@ response that misfits grossly is refused with the estimate in the message.
 Refusals (:class:`~viewcomp.calib.errors.FitError`, naming the capture and the fix): no
 chessboard; Gray code missing, out of order or not covering the projector image; Table-1
 captures in the wrong order (or one as dark as black); a saturated chessboard; the camera
-moved between captures (the projector frame's edges or the chessboard corners shift by more
-than :data:`~viewcomp.calib.geo.checks.MOVE_LIMIT_PX`); the projector image not wholly in the
+moved between captures (the chessboard corners of the two sets, or the projector frame's
+edges against the set's reference, screen/graycode_white or white/gray, with highlights and
+clipped pixels left out: :class:`~viewcomp.calib.geo.checks.MoveCheck`, shift by more than
+:data:`~viewcomp.calib.geo.checks.MOVE_LIMIT_PX`); the projector image not wholly in the
 camera's view; a wrong camera response.
 
 Units: camera and projector coordinates are pixels, (x right, y down), pixel centres at
@@ -162,7 +164,7 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
             )
 
     # 2. Gray code; the camera must not have moved; each plane checked against the chessboard
-    mover = MoveCheck(screen)
+    mover = MoveCheck(screen, tied=white.has("chessboard"))
     gc = decode_graycode(screen, size, on_pair=lambda n, img: mover(screen, n, img))
     stats["response"] = check_response(gc, screen.response, "rig.toml")
     # With the phase-shift captures, a camera that does not resolve the whole Gray code gets

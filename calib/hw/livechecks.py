@@ -1,14 +1,32 @@
 """The checks `viewcomp capture` runs on each capture as it arrives, so that a problem is
 named while the user can still fix it: saturated, too dark or not visible, wrong colour
 pattern, camera moved, chessboard not found (the list is in :mod:`viewcomp.calib.hw.procedure`).
+
+Camera moved: each stage's first gray is its reference; gray is shown again every few
+captures (:mod:`viewcomp.calib.hw.plan`). Every capture's projector frame is compared
+(:func:`~viewcomp.calib.geo.framematch.frame_shift`: highlights and clipped pixels left out)
+with the latest showing of gray, so a capture is compared with a reference taken moments
+before rather than with captures of other patterns; a Gray-code plane is compared summed with
+its inverse (the whole frame lit). Each showing of gray is compared, like with like, with the
+stage's first: a slow drift adds up there. The chessboard of the real screen is compared with
+the white screen's by its corners.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from viewcomp.calib.geo.checks import MIN_PEAK, MOVE_LIMIT_PX, frame_shift
 from viewcomp.calib.geo.chessboard import find_corners
+from viewcomp.calib.geo.framematch import (
+    MIN_MATCH,
+    MOVE_LIMIT_PX,
+    FrameEdges,
+    Shift,
+    frame_edges,
+    frame_shift,
+    lit_region,
+)
+from viewcomp.calib.hw.plan import REFERENCE, is_reference_again
 from viewcomp.calib.io.checks import DARK_LIMIT, SATURATION_LIMIT
 from viewcomp.calib.io.imageio import CaptureError, to_linear
 from viewcomp.calib.world.response import Response
@@ -31,7 +49,16 @@ class LiveChecks:
         self.gray: dict[str, np.ndarray] = {}
         self.lit: dict[str, np.ndarray] = {}
         self.corners: dict[str, np.ndarray] = {}
-        self.pending: dict[str, np.ndarray] = {}
+        self.pending: dict[str, tuple[str, np.ndarray, np.ndarray | None]] = {}
+        #: per stage: the lit region of its first gray, that gray's edges, and the latest
+        #: showing of gray (its name and edges)
+        self.region: dict[str, np.ndarray] = {}
+        self.first: dict[str, FrameEdges] = {}
+        self.latest: dict[str, tuple[str, FrameEdges]] = {}
+        #: per stage: the last capture whose frame matched (where the camera was still in place)
+        self.still: dict[str, str] = {}
+        #: the largest frame shift seen (camera px) and the capture that showed it
+        self.worst: tuple[float, str] = (0.0, "")
 
     def linear(self, raw: np.ndarray) -> np.ndarray:
         """(H, W, 3) codes -> float32 linear 0..1."""
@@ -50,14 +77,15 @@ class LiveChecks:
         if raw.ndim != 3 or raw.shape[2] != 3 or raw.dtype not in (np.uint8, np.uint16):
             raise CaptureError(f"{rel}: the camera returned {raw.shape} {raw.dtype}, not RGB")
         top = 255 if raw.dtype == np.uint8 else 65535
-        frac = self._clipped_fraction(sub, raw >= top)
+        at_top = raw >= top
+        frac = self._clipped_fraction(sub, at_top)
         if frac > SATURATION_LIMIT:
             raise CaptureError(
                 f"{rel}: {frac:.1%} of the lit pixels are at the maximum code (saturated): "
                 "lower the camera's exposure (--exposure) or the projector's brightness, or "
                 "capture with --hdr, and capture again"
             )
-        self.check_linear(sub, name, self.linear(raw))
+        self.check_linear(sub, name, self.linear(raw), np.any(at_top, axis=2))
 
     def check_merged(self, sub: str, name: str, lin: np.ndarray, clipped: np.ndarray) -> None:
         """Check one HDR capture: ``lin`` (H, W, 3) float32 merged linear light, ``clipped``
@@ -69,16 +97,22 @@ class LiveChecks:
                 f"{rel}: {frac:.1%} of the lit pixels are clipped even in the bracket's shortest "
                 "exposure: lower the camera's exposure (--exposure) and capture again"
             )
-        self.check_linear(sub, name, lin)
+        self.check_linear(sub, name, lin, np.any(clipped, axis=2))
 
-    def check_linear(self, sub: str, name: str, lin: np.ndarray) -> None:
-        """The checks of :meth:`check` after saturation, on the linear capture (H, W, 3)."""
+    def check_linear(
+        self, sub: str, name: str, lin: np.ndarray, clipped: np.ndarray | None = None
+    ) -> None:
+        """The checks of :meth:`check` after saturation, on the linear capture (H, W, 3);
+        ``clipped`` (H, W) bool: pixels at the top code (left out of the frame's match)."""
         rel = f"{sub}/{name}"
         if name == "black":
             self.black[sub] = lin
             return
-        if name == "gray":
-            self._first_gray(sub, rel, lin)
+        if name == REFERENCE:
+            self._first_gray(sub, rel, lin, clipped)
+            return
+        if is_reference_again(name):
+            self.moved(sub, rel, lin, clipped)
             return
         if sub not in self.gray:
             raise CaptureError(f"{rel}: captured before {sub}/gray; use capture_plan's order")
@@ -86,16 +120,20 @@ class LiveChecks:
             self._colour(sub, rel, name, lin)
         if name == "chessboard":
             self._chessboard(sub, rel, lin)
+        still = rel
         if name.startswith("graycode_") and name[9:].isdigit():
-            k = int(name[9:])
-            if k % 2 == 0:
-                self.pending[sub] = lin
+            if int(name[9:]) % 2 == 0:
+                self.pending[sub] = (rel, lin, clipped)
                 return
-            lin = lin + self.pending.pop(sub, np.zeros_like(lin))  # a plane + its inverse
+            if sub in self.pending:  # a plane + its inverse: the whole frame lit
+                still, plane, plane_clipped = self.pending.pop(sub)
+                lin = lin + plane
+                clipped = _either(clipped, plane_clipped)
+                rel = f"{still} + {name}"
         if name != "graycode_black":
-            self.moved(sub, rel, lin)
+            self._against_latest(sub, rel, lin, clipped, still)
 
-    def _first_gray(self, sub: str, rel: str, lin: np.ndarray) -> None:
+    def _first_gray(self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None) -> None:
         black = self.black.get(sub, np.zeros_like(lin))
         diff = (lin - black).mean(axis=2)
         peak = float(np.percentile(diff, 99.5))
@@ -115,6 +153,11 @@ class LiveChecks:
             )
         self.gray[sub] = lin
         self.lit[sub] = lit
+        self.region[sub] = lit_region(lin, self.black.get(sub))
+        edges = frame_edges(lin, self.region[sub], clipped)
+        self.first[sub] = edges
+        self.latest[sub] = (rel, edges)
+        self.still[sub] = rel
 
     def _colour(self, sub: str, rel: str, name: str, lin: np.ndarray) -> None:
         c = ("red", "green", "blue").index(name)
@@ -138,17 +181,58 @@ class LiveChecks:
                     "one was; put it in the same place, fix the camera, and capture again"
                 )
 
-    def moved(self, sub: str, rel: str, lin: np.ndarray) -> None:
-        """Refuse a capture whose frame edges moved from the stage's first gray capture."""
-        d, peak = frame_shift(self.gray[sub], lin)
-        if peak < MIN_PEAK:
+    def _shift(self, sub: str, rel: str, edges: FrameEdges, against: FrameEdges) -> Shift:
+        """The frame's shift from ``against``; refuses a capture that does not match it."""
+        shift = frame_shift(against, edges)
+        if shift.match < MIN_MATCH:
             raise CaptureError(
-                f"{rel}: the projector's frame is not where {sub}/gray has it (no clear match): "
-                "the camera moved a lot, or the projector stopped showing; fix the camera and "
-                "capture again"
+                f"{rel}: the projector's frame is not where {sub}/gray has it (no clear match, "
+                f"correlation {shift.match:.2f}; {self.still[sub]} still matched): the camera "
+                "moved a lot, or the projector stopped showing; fix the camera and capture again"
             )
+        if shift.distance > self.worst[0]:
+            self.worst = (shift.distance, rel)
+        return shift
+
+    def _against_latest(
+        self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None, still: str
+    ) -> None:
+        """Refuse a capture whose frame lies more than MOVE_LIMIT_PX from the latest gray's;
+        once it matches, the camera is known to have been in place at ``still`` (``rel``, or
+        for a plane + its inverse the plane: a move between the two, half in the sum, may
+        pass here and is caught at the next capture)."""
+        ref_rel, ref = self.latest[sub]
+        d = self._shift(sub, rel, frame_edges(lin, self.region[sub], clipped), ref).distance
         if d > MOVE_LIMIT_PX:
             raise CaptureError(
-                f"{rel}: the projector's frame moved {d:.1f} camera px since {sub}/gray: the "
-                "camera moved (or was bumped); fix it, lock zoom and focus, and capture again"
+                f"{rel}: the projector's frame lies {d:.1f} camera px from where {ref_rel} has "
+                f"it: the camera moved (or was bumped) after {self.still[sub]}; fix it, lock "
+                "zoom and focus, and capture again"
             )
+        self.still[sub] = still
+
+    def moved(self, sub: str, rel: str, lin: np.ndarray, clipped: np.ndarray | None = None) -> None:
+        """Check gray shown again (``lin`` (H, W, 3) linear, ``clipped`` (H, W) bool or None)
+        against the stage's first gray and its latest showing, like with like; it becomes
+        the latest. Refuses it when the frame lies more than MOVE_LIMIT_PX from either."""
+        edges = frame_edges(lin, self.region[sub], clipped)
+        first = f"{sub}/{REFERENCE}"
+        last_rel, last = self.latest[sub]
+        total = self._shift(sub, rel, edges, self.first[sub]).distance
+        step = total if last is self.first[sub] else self._shift(sub, rel, edges, last).distance
+        if max(total, step) > MOVE_LIMIT_PX:
+            raise CaptureError(
+                f"{rel}: the projector's frame lies {total:.1f} camera px from where {first} "
+                f"had it ({step:.1f} px from {last_rel}): the camera moved (or was bumped, or "
+                f"drifted) after {self.still[sub]}; fix it, lock zoom and focus, and capture "
+                "again"
+            )
+        self.latest[sub] = (rel, edges)
+        self.still[sub] = rel
+
+
+def _either(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
+    """The union of two optional masks."""
+    if a is None or b is None:
+        return a if b is None else b
+    return a | b

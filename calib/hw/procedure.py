@@ -13,14 +13,17 @@ the capture at once, so that a problem is named while the user can still fix it:
 - too dark / pattern not visible: the projected image does not stand out from black -> check
   the monitor, the camera's aim, the exposure;
 - wrong pattern: red, green, blue must raise their own camera channel most over gray;
-- camera moved: the projector frame's edges shift by more than 1 camera pixel from the
-  stage's first gray capture, or the chessboard corners from the white stage's;
+- camera moved: the projector frame's edges (highlights and clipped pixels left out,
+  :mod:`viewcomp.calib.geo.framematch`) lie more than 1 camera pixel from where the latest
+  showing of the stage's gray has them, gray shown again (every few captures, see
+  :mod:`viewcomp.calib.hw.plan`; not written) lies more than that from the stage's first,
+  or the chessboard corners from the white stage's;
 - chessboard not found.
 
 The sets: ``white/`` on the ideal matte white screen (Table 1, black, chessboard), after a
 prompt to put it in place; then ``screen/`` on the real screen (the same, plus the Gray code
-of OpenCV structured_light). Each stage ends with a second gray capture, compared with its
-first (the camera moved during the stage). Before anything is written, the whole set goes
+of OpenCV structured_light). Each stage ends with gray once more, compared with its first
+(the camera moved during the stage). Before anything is written, the whole set goes
 through the geometric calibration that `viewcomp calibrate` will run
 (:func:`viewcomp.calib.geo.rectify.rectify_capture_set`) and its saturation and darkness checks:
 a set that is written calibrates. A refused capture raises
@@ -239,7 +242,7 @@ def run_capture(
             checks.check(step.sub, step.name, image)
         else:
             checks.check_merged(step.sub, step.name, image, clipped)
-        if not getattr(step, "check_only", False):  # a step only checked is not written
+        if not step.check_only:  # the reference shown again: checked, not written
             captured[step.sub][step.name] = image
         progress.step(rel)
     if checks is not None:
@@ -287,4 +290,4 @@ def _end_of_stage(
     what = f"{stage}/gray (again, at the end)"
     image, clipped = take(gray, what)
     lin = checks.linear(image) if clipped is None else image
-    checks.moved(stage, what, lin)
+    checks.moved(stage, what, lin, clipped)

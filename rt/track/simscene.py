@@ -136,17 +136,7 @@ def render_person(
     scale = device.focal() * s / rng  # frame pixels per photo pixel
     k = max(1, int(np.ceil(2.0 * scale)))
     cx, cy, ax, ay = person.cut
-    x0, x1 = int(max(0, cx - ax)), int(min(img.shape[1], cx + ax + 1))
-    y0, y1 = int(max(0, cy - ay)), int(min(img.shape[0], cy + ay + 1))
-    src = img[y0:y1, x0:x1].astype(np.float32) / 255.0
-    if scale < 1.0:  # pre-filter before the photograph is sampled down
-        src = np.asarray(
-            cv2.GaussianBlur(src, (0, 0), sigmaX=max(0.5 / scale - 0.4, 0.01)), np.float32
-        )
-    if k > 1:
-        src = np.asarray(
-            cv2.resize(src, None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR), np.float32
-        )
+    src, x0, y0 = _face_patch(img, person.cut, scale, k)
     hh, ww = src.shape[:2]
     u = x0 + (np.arange(ww) + 0.5) / k - 0.5
     v = y0 + (np.arange(hh) + 0.5) / k - 0.5
@@ -182,6 +172,27 @@ def render_person(
     idx = pv[order], pu[order]
     out[idx] = out[idx] * (1.0 - a) + colour * a
     return out
+
+
+def _face_patch(
+    img: np.ndarray, cut: tuple[float, float, float, float], scale: float, k: int
+) -> tuple[np.ndarray, int, int]:
+    """The photograph's face cut (cx, cy, ax, ay: centre and half sizes, pixels) as float 0..1,
+    low-passed when it lands smaller than a frame pixel (``scale`` frame px per photo px) and
+    upsampled ``k`` times; returns it and its top-left photo pixel (x0, y0)."""
+    cx, cy, ax, ay = cut
+    x0, x1 = int(max(0, cx - ax)), int(min(img.shape[1], cx + ax + 1))
+    y0, y1 = int(max(0, cy - ay)), int(min(img.shape[0], cy + ay + 1))
+    src = img[y0:y1, x0:x1].astype(np.float32) / 255.0
+    if scale < 1.0:  # pre-filter before the photograph is sampled down
+        src = np.asarray(
+            cv2.GaussianBlur(src, (0, 0), sigmaX=max(0.5 / scale - 0.4, 0.01)), np.float32
+        )
+    if k > 1:
+        src = np.asarray(
+            cv2.resize(src, None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR), np.float32
+        )
+    return src, x0, y0
 
 
 def finish(frame: np.ndarray, rng: np.random.Generator, noise: float = 0.01) -> np.ndarray:
