@@ -24,9 +24,9 @@ from viewcomp.calib.geo.checks import MoveCheck
 from viewcomp.calib.geo.framematch import MIN_MATCH, frame_edges, frame_shift, lit_region
 from viewcomp.calib.geo.graycode import decode_graycode
 from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
-from viewcomp.calib.hw.devices import SimulatedRig
 from viewcomp.calib.hw.plan import capture_plan
 from viewcomp.calib.hw.procedure import run_capture
+from viewcomp.calib.hw.simrig import SimulatedRig
 from viewcomp.calib.io.captureset import (
     OPTIONAL,
     REQUIRED,
@@ -128,56 +128,62 @@ def _device(kind: str, materials_dir: Path | None) -> SimulatedRig:
 
 
 class _Counting:
-    """The camera of a simulated rig, counting grabs."""
+    """The projector of a simulated rig, counting the patterns shown with each screen in
+    place (what :meth:`SimulatedRig.move_camera_during` counts)."""
 
-    def __init__(self, camera) -> None:
-        self.camera, self.grabs = camera, 0
+    def __init__(self, dev: SimulatedRig) -> None:
+        self.dev, self.shows = dev, {"white": 0, "screen": 0}
 
     def __getattr__(self, name: str):
-        return getattr(self.camera, name)
+        return getattr(self.dev.projector, name)
 
-    def grab(self, n_frames: int) -> np.ndarray:
-        self.grabs += 1
-        return self.camera.grab(n_frames)
+    def show(self, image: np.ndarray) -> float:
+        self.shows[self.dev.screen_name] += 1
+        return self.dev.projector.show(image)
 
 
-def _capture(dev: SimulatedRig, out: Path, hdr: bool, camera=None, log=None) -> list[Path]:
+def _capture(dev: SimulatedRig, out: Path, hdr: bool, projector=None, log=None) -> list[Path]:
     def prompt(stage: str, message: str) -> bool:
         dev.use_screen(stage)
         return True
 
     return run_capture(
         out,
-        dev.projector,
-        camera or dev.camera,
+        projector or dev.projector,
+        dev.camera,
         rig_template=written_rig(dev.sim.rig),
         prompt=prompt,
         log=log or (lambda _: None),
         frames=2,
-        settle=0.0,
+        clock=dev.clock,
         response="srgb",
         hdr_stops=DEFAULT_STOPS if hdr else None,
     )
 
 
-_GRABS: dict[tuple[str, bool], dict[str, int]] = {}
+_SHOWS: dict[tuple[str, bool], dict[str, tuple[str, int]]] = {}
 
 
-def _first_grabs(kind: str, materials_dir: Path | None, hdr: bool, tmp: Path) -> dict[str, int]:
-    """Capture name ("white/red") -> the index of its first grab, from a run with a still
-    camera (which must pass); one run per screen and bracket."""
-    if (kind, hdr) in _GRABS:
-        return _GRABS[(kind, hdr)]
+def _first_grabs(
+    kind: str, materials_dir: Path | None, hdr: bool, tmp: Path
+) -> dict[str, tuple[str, int]]:
+    """Capture name ("white/red") -> (its screen, the patterns shown with that screen before
+    it): what ``move_camera_during`` takes to move the camera at that capture; from a run
+    with a still camera (which must pass), one per screen and bracket."""
+    if (kind, hdr) in _SHOWS:
+        return _SHOWS[(kind, hdr)]
     dev = _device(kind, materials_dir)
-    counting = _Counting(dev.camera)
-    at: dict[str, int] = {}
-    per_capture = len(DEFAULT_STOPS) if hdr else 1
+    counting = _Counting(dev)
+    at: dict[str, tuple[str, int]] = {}
 
-    def log(line: str) -> None:  # logged after each capture: "white/red (3/56)"
-        at.setdefault(line.rsplit(" (", 1)[0], counting.grabs - per_capture)
+    def log(line: str) -> None:  # logged after each capture: "white/red (3/56, ...)"
+        name = line.rsplit(" (", 1)[0]
+        sub = name.split("/", 1)[0]
+        if sub in counting.shows and "/" in name:  # its own show was the last one
+            at.setdefault(name, (sub, counting.shows[sub] - 1))
 
     _capture(dev, tmp / f"still-{kind}-{hdr}", hdr, counting, log)
-    _GRABS[(kind, hdr)] = at
+    _SHOWS[(kind, hdr)] = at
     return at
 
 
@@ -363,7 +369,7 @@ def test_a_bump_of_one_and_a_half_px_is_refused_naming_the_capture(
     mats = None if kind == "glossy" else materials_dir
     grabs = _first_grabs(kind, mats, hdr, tmp_path_factory.mktemp("still"))
     dev = _device(kind, mats)
-    dev.move_camera_after(grabs[at], _offset(dev.sim.rig, 1.5))
+    dev.move_camera_during(*grabs[at], _offset(dev.sim.rig, 1.5))
     with pytest.raises(CaptureError) as e:
         _capture(dev, tmp_path_factory.mktemp("bumped") / "c", hdr)
     message = str(e.value)
@@ -381,7 +387,7 @@ def test_a_bump_where_no_frame_is_compared_is_refused_naming_the_window(
     grabs = _first_grabs("glossy", None, False, tmp_path_factory.mktemp("still"))
     order = list(grabs)
     dev = _device("glossy", None)
-    dev.move_camera_after(grabs[at], _offset(dev.sim.rig, 1.5))
+    dev.move_camera_during(*grabs[at], _offset(dev.sim.rig, 1.5))
     with pytest.raises(CaptureError) as e:
         _capture(dev, tmp_path_factory.mktemp("bumped") / "c", False)
     message = str(e.value)
@@ -396,7 +402,7 @@ def test_a_bump_where_no_frame_is_compared_is_refused_naming_the_window(
 def test_a_jitter_of_a_third_px_is_not_refused(tmp_path: Path) -> None:
     grabs = _first_grabs("glossy", None, False, tmp_path)
     dev = _device("glossy", None)
-    dev.move_camera_after(grabs["screen/ramp"], _offset(dev.sim.rig, 0.3))
+    dev.move_camera_during(*grabs["screen/ramp"], _offset(dev.sim.rig, 0.3))
     paths = _capture(dev, tmp_path / "c", False)
     assert paths
 
