@@ -276,7 +276,7 @@ def test_capture_of_a_still_camera_passes_on_every_material(
     args += ["--sim-size", f"{SIZE[0]}x{SIZE[1]}", "--yes"] + (["--hdr"] if hdr else [])
     rc = main(args)
     err = capsys.readouterr().err
-    assert "moved" not in err and "frame" not in err, err
+    assert _no_move_refusal(err), err
     if name in UNDECODED and UNDECODED_MESSAGE in err:  # every live check passed before
         pytest.xfail(UNDECODED[name])
     if hdr or rc == 0:
@@ -286,6 +286,13 @@ def test_capture_of_a_still_camera_passes_on_every_material(
 
 
 @pytest.mark.slow
+def _no_move_refusal(log: str) -> bool:
+    """No camera-moved refusal in a capture's log (the refusals say the frame "moved" or
+    "lies" elsewhere, or that it cannot be matched); the log's other lines may speak of
+    frames."""
+    return not any(w in log for w in ("moved", "lies ", "cannot be matched", "no clear match"))
+
+
 def test_the_reported_capture_is_not_refused_as_moved(materials_dir: Path, tmp_path, capsys):
     # the report's command: 320x160, 8 bits; "screen/chessboard: the projector's frame moved
     # 6.3 camera px since screen/gray" before
@@ -293,7 +300,7 @@ def test_the_reported_capture_is_not_refused_as_moved(materials_dir: Path, tmp_p
     args = ["capture", str(tmp_path / "c"), "--simulate", "--material", str(material)]
     rc = main([*args, "--sim-size", "320x160", "--yes"])
     err = capsys.readouterr().err
-    assert "moved" not in err and "frame" not in err, err
+    assert _no_move_refusal(err), err
     assert rc == 0 or ("saturated" in err and "--hdr" in err), err
 
 
