@@ -371,59 +371,78 @@ class EmulatedCamera:
         return sig
 
     def _render(self, rec: _Exposure) -> Frame:
-        p = self.profile
         sig = self._signal(rec)
         oldest = min(
             [rec.start, *(r.start for r in self._queue), *(r.start for r in self._pending)]
         )
         self.projector.forget_before(oldest)
-        rng = np.random.default_rng([self.seed, rec.sequence, 0x5E])
-        if p.bayer:
-            photo = np.empty(sig.shape[:2], np.float32)  # RGGB
-            photo[0::2, 0::2] = sig[0::2, 0::2, 0]
-            photo[0::2, 1::2] = sig[0::2, 1::2, 1]
-            photo[1::2, 0::2] = sig[1::2, 0::2, 1]
-            photo[1::2, 1::2] = sig[1::2, 1::2, 2]
-        else:
-            photo = sig @ MONO_WEIGHTS
-        electrons = np.maximum(photo, 0.0) * np.float32(p.full_well)
-        sd = np.sqrt(electrons + np.float32(p.read_noise**2))
-        electrons = electrons + sd * rng.standard_normal(electrons.shape, np.float32)
-        top = (1 << p.raw_bits) - 1
-        raw = np.clip(np.rint(electrons * np.float32(rec.gain * top / p.full_well)), 0, top)
-        raw = raw.astype(np.uint16)
-        if not p.bayer:
-            image = raw
-        elif p.linear:
-            image = cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB)  # bilinear; RGGB from row 0
-        else:
-            image = self._process(raw, rec)
-        return Frame(
-            image=image,
-            timestamp=rec.start,
-            exposure=rec.exposure,
-            gain=rec.gain,
-            sequence=rec.sequence,
-            bits=p.out_bits,
-            linear=p.linear,
-        )
+        return develop(sig, rec, self.profile, self.seed)
 
-    def _process(self, raw: np.ndarray, rec: _Exposure) -> np.ndarray:
-        """A webcam's image processing: demosaic, white balance, tone curve, denoise, sharpen,
-        8 bits, MJPEG. (Hc, Wc) raw codes -> (Hc, Wc, 3) uint8 RGB."""
-        p = self.profile
-        rgb = cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB_EA).astype(np.float32)
-        rgb *= rec.wb / np.float32((1 << p.raw_bits) - 1)
-        enc = tone_curve(np.clip(rgb, 0.0, 1.0), p.tone_s)
-        if p.denoise > 0:
-            enc = cv2.GaussianBlur(enc, (0, 0), p.denoise)
-        if p.sharpen > 0:
-            soft = cv2.GaussianBlur(enc, (0, 0), 1.0)
-            enc = enc + np.float32(p.sharpen) * (enc - soft)
-        out = np.clip(np.rint(enc * 255.0), 0, 255).astype(np.uint8)
-        if p.mjpeg_quality > 0:
-            out = mjpeg(out, p.mjpeg_quality)
-        return out
+
+# -- the sensor and the image processing (signal -> frame) ------------------------------------
+
+
+def develop(sig: np.ndarray, rec: _Exposure, p: CameraProfile, seed: int) -> Frame:
+    """The frame a camera of profile ``p`` delivers from the noise-free relative signal
+    ``sig`` (Hc, Wc, 3) of exposure ``rec``: the sensor's codes (:func:`sensor_codes`, noise
+    drawn from ``seed`` and the frame's sequence number), then raw (mono), demosaiced (linear
+    colour) or processed as a webcam does (:func:`webcam_process`)."""
+    rng = np.random.default_rng([seed, rec.sequence, 0x5E])
+    raw = sensor_codes(sig, p, rec.gain, rng)
+    if not p.bayer:
+        image = raw
+    elif p.linear:
+        image = cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB)  # bilinear; RGGB from row 0
+    else:
+        image = webcam_process(raw, rec.wb, p)
+    return Frame(
+        image=image,
+        timestamp=rec.start,
+        exposure=rec.exposure,
+        gain=rec.gain,
+        sequence=rec.sequence,
+        bits=p.out_bits,
+        linear=p.linear,
+    )
+
+
+def sensor_codes(
+    sig: np.ndarray, p: CameraProfile, gain: float, rng: np.random.Generator
+) -> np.ndarray:
+    """The sensor's raw codes (Hc, Wc) uint16 for the relative signal ``sig`` (Hc, Wc, 3):
+    sampled through an RGGB Bayer mosaic (or mono weights), shot and read noise in electrons
+    (from ``rng``), then ``gain`` and the ADC's ``p.raw_bits``."""
+    if p.bayer:
+        photo = np.empty(sig.shape[:2], np.float32)  # RGGB
+        photo[0::2, 0::2] = sig[0::2, 0::2, 0]
+        photo[0::2, 1::2] = sig[0::2, 1::2, 1]
+        photo[1::2, 0::2] = sig[1::2, 0::2, 1]
+        photo[1::2, 1::2] = sig[1::2, 1::2, 2]
+    else:
+        photo = sig @ MONO_WEIGHTS
+    electrons = np.maximum(photo, 0.0) * np.float32(p.full_well)
+    sd = np.sqrt(electrons + np.float32(p.read_noise**2))
+    electrons = electrons + sd * rng.standard_normal(electrons.shape, np.float32)
+    top = (1 << p.raw_bits) - 1
+    raw = np.clip(np.rint(electrons * np.float32(gain * top / p.full_well)), 0, top)
+    return raw.astype(np.uint16)
+
+
+def webcam_process(raw: np.ndarray, wb: np.ndarray, p: CameraProfile) -> np.ndarray:
+    """A webcam's image processing: demosaic, white balance (gains ``wb`` (3,)), tone curve,
+    denoise, sharpen, 8 bits, MJPEG. (Hc, Wc) raw codes -> (Hc, Wc, 3) uint8 RGB."""
+    rgb = cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB_EA).astype(np.float32)
+    rgb *= wb / np.float32((1 << p.raw_bits) - 1)
+    enc = tone_curve(np.clip(rgb, 0.0, 1.0), p.tone_s)
+    if p.denoise > 0:
+        enc = cv2.GaussianBlur(enc, (0, 0), p.denoise)
+    if p.sharpen > 0:
+        soft = cv2.GaussianBlur(enc, (0, 0), 1.0)
+        enc = enc + np.float32(p.sharpen) * (enc - soft)
+    out = np.clip(np.rint(enc * 255.0), 0, 255).astype(np.uint8)
+    if p.mjpeg_quality > 0:
+        out = mjpeg(out, p.mjpeg_quality)
+    return out
 
 
 def mjpeg(rgb: np.ndarray, quality: int) -> np.ndarray:

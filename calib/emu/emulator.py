@@ -106,6 +106,58 @@ def _screen(
     return make_screen(text, gloss, shape=shape, seed=seed)
 
 
+def _profile(profile: str | CameraProfile) -> CameraProfile:
+    """The camera profile named ``profile`` (one of :data:`PROFILES`), or ``profile`` itself.
+
+    Raises:
+        SimulatorError: an unknown name.
+    """
+    if isinstance(profile, str):
+        if profile not in PROFILES:
+            raise SimulatorError(
+                f"unknown camera profile {profile!r}: use one of {', '.join(PROFILES)}"
+            )
+        return PROFILES[profile]
+    return profile
+
+
+def _true_rig(
+    rig: Rig | None,
+    size: tuple[int, int],
+    camera_size: tuple[int, int] | None,
+    prof: CameraProfile,
+    supersample: int | None,
+) -> tuple[Rig, int]:
+    """The emulator's true geometry and its scene supersampling (see :func:`open_emulator`):
+    ``rig`` (None: the simulation rig) with the projector at ``size`` (W, H) and the camera
+    at ``camera_size`` (W, H; None: from the profile's density) with the profile's
+    distortion; the supersampling ``supersample`` or enough for two samples per projector
+    pixel (at least 2)."""
+    base = rig or simulation_rig()
+    base = replace(
+        base,
+        projector=replace(base.projector, resolution=size, principal_point=None),
+    )
+    scaled = scaled_camera_rig(base, size)
+    sw, sh = scaled.camera.resolution
+    if camera_size is None:
+        k = prof.density / SIM_DENSITY
+        camera_size = (max(16, round(sw * k)), max(16, round(sh * k)))
+    cw, ch = camera_size
+    density = SIM_DENSITY * cw / sw
+    factor = supersample or max(2, math.ceil(2.0 / density))
+    true_rig = replace(
+        scaled,
+        camera=replace(
+            scaled.camera,
+            resolution=(int(cw), int(ch)),
+            principal_point=None,
+            distortion=prof.distortion,
+        ),
+    )
+    return true_rig, factor
+
+
 def open_emulator(
     profile: str | CameraProfile = "webcam",
     screen: str | PathLike[str] | AnyScreen = "magenta",
@@ -141,37 +193,9 @@ def open_emulator(
         SimulatorError: an unknown profile or screen.
         MaterialError: a material file that cannot be used.
     """
-    if isinstance(profile, str):
-        if profile not in PROFILES:
-            raise SimulatorError(
-                f"unknown camera profile {profile!r}: use one of {', '.join(PROFILES)}"
-            )
-        prof = PROFILES[profile]
-    else:
-        prof = profile
-    base = rig or simulation_rig()
+    prof = _profile(profile)
     size = (int(projector_size[0]), int(projector_size[1]))
-    base = replace(
-        base,
-        projector=replace(base.projector, resolution=size, principal_point=None),
-    )
-    scaled = scaled_camera_rig(base, size)
-    sw, sh = scaled.camera.resolution
-    if camera_size is None:
-        k = prof.density / SIM_DENSITY
-        camera_size = (max(16, round(sw * k)), max(16, round(sh * k)))
-    cw, ch = camera_size
-    density = SIM_DENSITY * cw / sw
-    factor = supersample or max(2, math.ceil(2.0 / density))
-    true_rig = replace(
-        scaled,
-        camera=replace(
-            scaled.camera,
-            resolution=(int(cw), int(ch)),
-            principal_point=None,
-            distortion=prof.distortion,
-        ),
-    )
+    true_rig, factor = _true_rig(rig, size, camera_size, prof, supersample)
     mixing = ProjectorPhysics().mixing
     model = dlp or DlpModel()
     sim = Simulator(rig=true_rig, ambient=AMBIENT, seed=seed)

@@ -141,6 +141,58 @@ def coarse_position(bits: np.ndarray, table: np.ndarray) -> tuple[np.ndarray, np
     return centre[code], half[code]
 
 
+def _axis_planes(
+    caps: Captures,
+    gc: GrayCode,
+    a: int,
+    widths: np.ndarray,
+    resolved: np.ndarray,
+    period: int,
+) -> tuple[np.ndarray, int]:
+    """The Gray-code planes of axis ``a`` (0 columns, 1 rows) that unwrap its phase: the
+    resolved ones (indices into ``widths``) and the finest stripe width among them (px; the
+    axis' projector size where none is resolved).
+
+    Raises:
+        FitError: the finest resolved stripe is wider than ``period // 4`` px, so the coarse
+            position cannot pick the phase's period.
+    """
+    planes = np.arange(gc.n_col_bits) if a == 0 else np.arange(gc.n_col_bits, len(widths))
+    keep = planes[resolved[planes]]
+    table = gc.col_bits if a == 0 else gc.row_bits
+    finest_w = int(widths[keep].min()) if keep.size else int(table.shape[1])
+    if finest_w > period // 4:
+        dropped = planes[~resolved[planes]]
+        k = int(dropped[np.argmax(widths[dropped])]) if dropped.size else int(planes[-1])
+        raise FitError(
+            caps.rel(gc.names[2 * k]),
+            f"the camera does not resolve the Gray code's {int(widths[k])}-px stripes "
+            f"(contrast {gc.contrast[k]:.2f}), so it cannot place a pixel within "
+            f"{period // 4} projector px, as unwrapping the {period}-px phase needs: move "
+            "the camera closer or use a camera of higher resolution, focus it, and capture "
+            "again",
+        )
+    return keep, finest_w
+
+
+def _axis_captures(
+    caps: Captures,
+    names: list[str],
+    on_axis: Callable[[str, np.ndarray], None] | None,
+) -> list[np.ndarray]:
+    """The channel means (Hc, Wc) of one axis' phase captures ``names``, in shift order;
+    ``on_axis`` (see ``decode_phase``) is given the first name and their (Hc, Wc, 3) mean."""
+    imgs = []
+    total = None
+    for n in names:
+        img3 = caps.get(n)
+        imgs.append(channel_mean(img3))
+        total = img3 if total is None else total + img3
+    if on_axis is not None and total is not None:
+        on_axis(names[0], total / np.float32(len(names)))
+    return imgs
+
+
 def decode_phase(
     caps: Captures,
     gc: GrayCode,
@@ -172,33 +224,13 @@ def decode_phase(
     finest: list[int] = []
     inconsistent = 0
     for a in range(len(PHASE_AXES)):
-        planes = np.arange(gc.n_col_bits) if a == 0 else np.arange(gc.n_col_bits, len(widths))
-        keep = planes[resolved[planes]]
+        keep, finest_w = _axis_planes(caps, gc, a, widths, resolved, period)
         table = gc.col_bits if a == 0 else gc.row_bits
         first = 0 if a == 0 else gc.n_col_bits
-        finest_w = int(widths[keep].min()) if keep.size else int(table.shape[1])
-        if finest_w > period // 4:
-            dropped = planes[~resolved[planes]]
-            k = int(dropped[np.argmax(widths[dropped])]) if dropped.size else int(planes[-1])
-            raise FitError(
-                caps.rel(gc.names[2 * k]),
-                f"the camera does not resolve the Gray code's {int(widths[k])}-px stripes "
-                f"(contrast {gc.contrast[k]:.2f}), so it cannot place a pixel within "
-                f"{period // 4} projector px, as unwrapping the {period}-px phase needs: move "
-                "the camera closer or use a camera of higher resolution, focus it, and capture "
-                "again",
-            )
         used += [int(k) for k in keep]
         finest.append(finest_w)
         centre, half = coarse_position(gc.bits[keep], table[keep - first])
-        imgs = []
-        total = None
-        for n in names[a * shifts : (a + 1) * shifts]:
-            img3 = caps.get(n)
-            imgs.append(channel_mean(img3))
-            total = img3 if total is None else total + img3
-        if on_axis is not None and total is not None:
-            on_axis(names[a * shifts], total / np.float32(shifts))
+        imgs = _axis_captures(caps, names[a * shifts : (a + 1) * shifts], on_axis)
         phi, amp = wrapped_phase(imgs)
         modulation[a] = amp / rng
         u_phi = phi * (period / (2.0 * np.pi))

@@ -71,7 +71,7 @@ from viewcomp.calib.geo.checks import (
 )
 from viewcomp.calib.geo.chessboard import Corners, find_corners, zhang
 from viewcomp.calib.geo.graycode import GrayCode, check_planes, decode_graycode
-from viewcomp.calib.geo.phaseshift import decode_phase, has_phase, with_phase
+from viewcomp.calib.geo.phaseshift import PhaseMap, decode_phase, has_phase, with_phase
 from viewcomp.calib.geo.projmap import (
     ProjectorMap,
     fill_border,
@@ -81,6 +81,7 @@ from viewcomp.calib.geo.projmap import (
 )
 from viewcomp.calib.io.captureset import OPTIONAL, REQUIRED, CaptureSet
 from viewcomp.calib.io.checks import SATURATION_LIMIT
+from viewcomp.calib.world.rig import Rig
 
 MIN_DECODED = 0.5  # share of the lit projector frame that must decode
 # share of the lit camera pixels the Gray code alone must decode (every plane resolved, every
@@ -116,22 +117,19 @@ def gray_code_suffices(gc: GrayCode) -> bool:
     return bool(gc.resolved().all() and decoded >= GRAY_SUFFICES)
 
 
-def calibrate_geometry(cs: CaptureSet) -> Geometry:
-    """Chessboard + Zhang, Gray code, the dense map and the camera-moved checks (steps 1-3 of
-    the module doc) for a ``space = "camera"`` capture set.
+def _chessboard(
+    screen: Captures, white: Captures, rig: Rig
+) -> tuple[Corners, np.ndarray, np.ndarray, dict[str, Any]]:
+    """Step 1 of the module doc: the real screen's chessboard corners and Zhang's camera
+    matrix ``k`` (3, 3) and distortion ``dist`` on them; the white screen's chessboard (when
+    captured) must lie where the real screen's does. Returns them and the stats so far
+    (``space``, ``chessboard``).
 
     Raises:
-        FitError: a capture that makes geometric calibration impossible (see module doc).
+        FitError: a saturated chessboard, one whose corners are not found, or a camera that
+            moved between the white screen's captures and the real screen's.
     """
-    t0 = time.perf_counter()
-    rig = cs.rig
     size = rig.projector.resolution
-    cw, ch = rig.camera.resolution
-    shape = (ch, cw)
-    screen = Captures(cs, "screen")
-    white = Captures(cs, "white")
-
-    # 1. chessboard + Zhang
     cb = screen.get("chessboard")
     sat = screen.saturation.get("chessboard", 0.0)
     if sat > SATURATION_LIMIT:
@@ -162,6 +160,80 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
                 "white screen's captures and the real screen's; fix the camera and capture both "
                 "sets again",
             )
+    return corners, k, dist, stats
+
+
+def _phase(screen: Captures, gc: GrayCode, mover: MoveCheck) -> tuple[GrayCode, PhaseMap | None]:
+    """The phase-shift captures decoded (each axis' checked by ``mover``), when the set has
+    them: returns the Gray code with the phase's sub-pixel positions where it does not resolve
+    every plane (else as it is), and the phase map, its stats saying whether the map uses it
+    (None without phase captures)."""
+    if not has_phase(screen):
+        return gc, None
+    phase = decode_phase(screen, gc, on_axis=lambda n, img: mover(screen, n, img))
+    use = not gray_code_suffices(gc)
+    if use:
+        gc = with_phase(gc, phase)
+    return gc, replace(phase, stats={**phase.stats, "used_for_map": use})
+
+
+def _fit_dense_map(
+    gc: GrayCode,
+    mask: np.ndarray,
+    k: np.ndarray,
+    dist: np.ndarray,
+    h_cb: np.ndarray,
+    size: tuple[int, int],
+) -> tuple[ProjectorMap, dict[str, float]]:
+    """Step 3 of the module doc: the map fitted on the decoded camera pixels in ``mask``
+    (Hc, Wc) bool, thinned to about :data:`MAX_DENSE_POINTS`, starting from the chessboard's
+    homography ``h_cb`` (3, 3; projector px -> camera px) and Zhang's ``k``, ``dist``;
+    ``size`` the projector's (W, H). Returns the map and its fit stats."""
+    ys, xs = np.nonzero(mask)
+    step = max(1, int(np.ceil(len(xs) / MAX_DENSE_POINTS)))
+    sel = slice(None, None, step)
+    cam_pts = np.stack([xs[sel], ys[sel]], 1).astype(np.float64)
+    proj_pts = gc.positions()[ys[sel], xs[sel]]  # sub-pixel with phase shifting
+    cu, cv = (size[0] - 1) / 2.0, (size[1] - 1) / 2.0
+    norm = np.array([[1 / cu, 0, -1], [0, 1 / cv, -1], [0, 0, 1]])
+    h0 = h_cb @ np.linalg.inv(norm)
+    return fit_map(cam_pts, proj_pts, k, dist, h0, size)
+
+
+def _check_inside(pmap: ProjectorMap, camera_size: tuple[int, int], screen: Captures) -> None:
+    """Every projector pixel must map inside the camera's image (``camera_size`` (Wc, Hc)).
+
+    Raises:
+        FitError: some fall outside it.
+    """
+    cw, ch = camera_size
+    mx, my = pmap.grid()
+    outside = (mx < -0.5) | (mx > cw - 0.5) | (my < -0.5) | (my > ch - 0.5)
+    if outside.any():
+        raise FitError(
+            screen.rel("graycode_white"),
+            f"{outside.mean():.1%} of the projector's pixels fall outside the camera's image: "
+            "aim or zoom the camera out so that it sees the whole projected image, with a margin",
+        )
+
+
+def calibrate_geometry(cs: CaptureSet) -> Geometry:
+    """Chessboard + Zhang, Gray code, the dense map and the camera-moved checks (steps 1-3 of
+    the module doc) for a ``space = "camera"`` capture set.
+
+    Raises:
+        FitError: a capture that makes geometric calibration impossible (see module doc).
+    """
+    t0 = time.perf_counter()
+    rig = cs.rig
+    size = rig.projector.resolution
+    cw, ch = rig.camera.resolution
+    shape = (ch, cw)
+    screen = Captures(cs, "screen")
+    white = Captures(cs, "white")
+
+    # 1. chessboard + Zhang
+    corners, k, dist, stats = _chessboard(screen, white, rig)
 
     # 2. Gray code; the camera must not have moved; each plane checked against the chessboard
     mover = MoveCheck(screen, tied=white.has("chessboard"))
@@ -172,13 +244,7 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
     # resolves every plane keeps the Gray code's whole pixels: their rounding is unbiased and
     # the fit averages it away, while the phase carries systematic errors of ~0.01 camera px
     # that bias the lens (module doc, step 2). A set without them: the Gray code alone.
-    phase = None
-    if has_phase(screen):
-        phase = decode_phase(screen, gc, on_axis=lambda n, img: mover(screen, n, img))
-        use = not gray_code_suffices(gc)
-        if use:
-            gc = with_phase(gc, phase)
-        phase = replace(phase, stats={**phase.stats, "used_for_map": use})
+    gc, phase = _phase(screen, gc, mover)
     gc_rel = screen.rel(gc.names[0])
     mover.flush(lambda: check_coverage(gc, size, gc_rel))
     for caps in (white, screen):
@@ -204,15 +270,8 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
 
     # 3. the dense map
     # the fit takes the pixels that see the frame whole: at its edge blur biases the phase
-    ys, xs = np.nonzero(phase.whole if sub and phase is not None else ok)
-    step = max(1, int(np.ceil(len(xs) / MAX_DENSE_POINTS)))
-    sel = slice(None, None, step)
-    cam_pts = np.stack([xs[sel], ys[sel]], 1).astype(np.float64)
-    proj_pts = gc.positions()[ys[sel], xs[sel]]  # sub-pixel with phase shifting
-    cu, cv = (size[0] - 1) / 2.0, (size[1] - 1) / 2.0
-    norm = np.array([[1 / cu, 0, -1], [0, 1 / cv, -1], [0, 0, 1]])
-    h0 = h_cb @ np.linalg.inv(norm)
-    pmap, fit = fit_map(cam_pts, proj_pts, k, dist, h0, size)
+    fit_mask = phase.whole if sub and phase is not None else ok
+    pmap, fit = _fit_dense_map(gc, fit_mask, k, dist, h_cb, size)
     corner_err = np.linalg.norm(pmap(corners.projector) - corners.camera, axis=1)
     corner_rms = float(np.sqrt(np.mean(corner_err**2)))
     stats["graycode"] = {
@@ -234,14 +293,7 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
             f"(RMS): the camera moved between {screen.rel('chessboard')} and the Gray-code "
             "captures; fix the camera and capture the set again",
         )
-    mx, my = pmap.grid()
-    outside = (mx < -0.5) | (mx > cw - 0.5) | (my < -0.5) | (my > ch - 0.5)
-    if outside.any():
-        raise FitError(
-            screen.rel("graycode_white"),
-            f"{outside.mean():.1%} of the projector's pixels fall outside the camera's image: "
-            "aim or zoom the camera out so that it sees the whole projected image, with a margin",
-        )
+    _check_inside(pmap, (cw, ch), screen)
 
     stats["seconds"] = round(time.perf_counter() - t0, 2)
     return Geometry(pmap, corners, gc, stats)

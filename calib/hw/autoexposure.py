@@ -48,6 +48,52 @@ def bright_level(frame: Frame) -> float:
     return float(np.percentile(img, PERCENTILE))
 
 
+def _next_setting(
+    name: str,
+    level: float,
+    light: float,
+    linear: bool,
+    ranges: tuple[float, float, float],
+    refresh_hz: float,
+) -> tuple[float, float]:
+    """The next (exposure s, gain x) to try after a frame whose brightest codes were at
+    ``level`` (0..1 of full scale) with ``light`` = exposure * gain (s); ``linear`` raw codes
+    (else encoded ~ light^(1/2.2)); ``ranges`` (lowest exposure s, highest exposure s,
+    highest gain x); exposures in whole refresh periods of ``refresh_hz`` (Hz) where one fits.
+
+    Raises:
+        DeviceError: even the shortest exposure would be too long (the white screen clips).
+    """
+    lo, hi, g_hi = ranges
+    if level >= CLIPPED:
+        want = light / 4  # clipped: how far is unknown, step down
+    elif level <= 0.02:
+        want = light * 8
+    else:
+        # encoded codes ~ light^(1/2.2); raw ones are linear
+        power = 1.0 if linear else 2.2
+        want = light * (TARGET / level) ** power
+    new_gain = 1.0
+    new_exp = want
+    if want > hi:
+        new_exp, new_gain = hi, min(g_hi, want / hi)
+    if new_exp < lo:
+        raise DeviceError(
+            f"{name}: the white screen clips even at the shortest exposure "
+            f"({lo * 1000:.3g} ms): lower the projector's brightness, close the lens's "
+            "aperture or add an ND filter, and capture again"
+        )
+    new_exp = whole_periods(new_exp, refresh_hz)
+    period = 1.0 / refresh_hz
+    below = math.floor(want / period * (1 + 1e-9)) * period
+    # light that still lands within the tolerance above the target
+    slack = ((TARGET + TOLERANCE) / TARGET) ** (1.0 if linear else 2.2)
+    if new_exp > want * slack and below >= period and g_hi > 1.0:
+        # whole periods overshoot: the periods below the target, the gain for the rest
+        new_exp, new_gain = below, min(g_hi, want / below)
+    return new_exp, new_gain
+
+
 def search_exposure(
     camera: Camera,
     projector: Projector,
@@ -88,32 +134,9 @@ def search_exposure(
             return exposure, gain
         if level < CLIPPED and (best is None or abs(level - TARGET) < abs(best[0] - TARGET)):
             best = (level, exposure, gain)
-        if level >= CLIPPED:
-            want = exposure * gain / 4  # clipped: how far is unknown, step down
-        elif level <= 0.02:
-            want = exposure * gain * 8
-        else:
-            # encoded codes ~ light^(1/2.2); raw ones are linear
-            power = 1.0 if f.linear else 2.2
-            want = exposure * gain * (TARGET / level) ** power
-        new_gain = 1.0
-        new_exp = want
-        if want > hi:
-            new_exp, new_gain = hi, min(g_hi, want / hi)
-        if new_exp < lo:
-            raise DeviceError(
-                f"{camera.name}: the white screen clips even at the shortest exposure "
-                f"({lo * 1000:.3g} ms): lower the projector's brightness, close the lens's "
-                "aperture or add an ND filter, and capture again"
-            )
-        new_exp = whole_periods(new_exp, projector.refresh_hz)
-        period = 1.0 / projector.refresh_hz
-        below = math.floor(want / period * (1 + 1e-9)) * period
-        # light that still lands within the tolerance above the target
-        slack = ((TARGET + TOLERANCE) / TARGET) ** (1.0 if f.linear else 2.2)
-        if new_exp > want * slack and below >= period and g_hi > 1.0:
-            # whole periods overshoot: the periods below the target, the gain for the rest
-            new_exp, new_gain = below, min(g_hi, want / below)
+        new_exp, new_gain = _next_setting(
+            camera.name, level, exposure * gain, f.linear, (lo, hi, g_hi), projector.refresh_hz
+        )
         if math.isclose(new_exp, exposure, rel_tol=1e-3) and math.isclose(
             new_gain, gain, rel_tol=1e-3
         ):

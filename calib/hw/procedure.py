@@ -58,7 +58,12 @@ from viewcomp.calib.hw.progress import Progress
 from viewcomp.calib.hw.reader import FrameReader
 from viewcomp.calib.hw.session import Session
 from viewcomp.calib.io.atomic import atomic_open
-from viewcomp.calib.io.captureset import RIG_FILE, capture_set_from_raw, write_capture_set
+from viewcomp.calib.io.captureset import (
+    RIG_FILE,
+    CaptureSet,
+    capture_set_from_raw,
+    write_capture_set,
+)
 from viewcomp.calib.io.checks import check_captures
 from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.world.response import parse_response
@@ -189,9 +194,6 @@ def run_capture(
             stopped, or the folder cannot hold a capture set. Nothing is written then.
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
-    from viewcomp.calib.geo.camresponse import estimate_set_response
-    from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
-
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
     if settle < 0:
@@ -210,10 +212,73 @@ def run_capture(
     if camera.channels == 1:
         log(f"warning: {camera.name} is mono: {MONO_LIMITS}")
     session = Session(projector, camera, clock, reader, log, frames, settle)
-    checks: LiveChecks | None = None
-    captured: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     plan = capture_plan(w, h)
     progress = Progress(len(plan), clock, log)
+    prepare = (exposure == "auto", hdr_stops, hdr_stops is not None and response == "estimate")
+    captured, rig = _take_plan(plan, session, prompt, progress, rig, prepare)
+    projector.show(np.zeros((h, w, 3), np.uint8))
+    if session.bracket is not None and response == "estimate":
+        response = None  # estimated from the brackets, not from the Gray code
+    return _finish_set(
+        out, rig, captured, response == "estimate", incomplete, camera.channels == 1, log
+    )
+
+
+def _finish_set(
+    out: Path,
+    rig: Rig,
+    captured: dict[str, dict[str, np.ndarray]],
+    estimate: bool,
+    incomplete: bool,
+    mono: bool,
+    log: Log,
+) -> list[Path]:
+    """Check the captures (by stage and name, as :func:`_take_plan` returns them) as a set
+    and write it to ``out``; returns the files. ``estimate``: first estimate the camera's
+    response from the Gray code (into ``rig``); ``incomplete``: the rig.toml written asks for
+    its geometry to be completed; ``mono``: a one-channel camera (:func:`_check_set`).
+
+    Raises:
+        FitError: the set fails the geometric calibration or a capture's check.
+    """
+    from viewcomp.calib.geo.camresponse import estimate_set_response
+
+    cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
+    if estimate:
+        found, misfit = estimate_set_response(cs)
+        log(f"camera response estimated from the Gray code: {found.spec!r} (misfit {misfit:.4f})")
+        rig = replace(rig, camera=replace(rig.camera, response=found.spec))
+        cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
+    _check_set(cs, mono, log)
+    paths = write_capture_set(out, rig, captured["white"], captured["screen"])
+    if incomplete:
+        with atomic_open(out / RIG_FILE) as f:
+            f.write((COMPLETE_HEADER + rig_to_toml(rig)).encode("utf-8"))
+        log(f"{out / RIG_FILE}: complete the geometry (see its first lines) before calibrating")
+    return paths
+
+
+def _take_plan(
+    plan: list[Step],
+    session: Session,
+    prompt: Prompt,
+    progress: Progress,
+    rig: Rig,
+    prepare: tuple[bool, tuple[float, ...] | None, bool],
+) -> tuple[dict[str, dict[str, np.ndarray]], Rig]:
+    """Show and capture every step of ``plan``, stage by stage (``prompt`` asked before each),
+    each capture checked live and each stage ended by gray again (:func:`_end_of_stage`).
+
+    Before the first capture the session is prepared (``prepare``: search the exposure, the
+    HDR bracket's stops or None, estimate the response from a bracket) and the live checks
+    made for the response it leaves. Returns the captures to write by stage (``"white"``,
+    ``"screen"``) and name (codes, or merged linear values), and ``rig`` with that response.
+
+    Raises:
+        CaptureError: the user stopped, or a live check refused a capture.
+    """
+    checks: LiveChecks | None = None
+    captured: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     stage = ""
     for step in plan:
         if step.sub != stage:
@@ -223,17 +288,7 @@ def run_capture(
             if not prompt(stage, STAGE_MESSAGES[stage]):
                 raise CaptureError("capture stopped by the user; nothing was written")
             if checks is None:
-                found = session.prepare(
-                    exposure == "auto",
-                    hdr_stops,
-                    rig.camera.response_curve(),
-                    hdr_stops is not None and response == "estimate",
-                )
-                if found is not None:
-                    rig = replace(rig, camera=replace(rig.camera, response=found.spec))
-                checks = (MonoChecks if camera.channels == 1 else LiveChecks)(
-                    rig.camera.response_curve(), (w, h)
-                )
+                rig, checks = _prepare(session, rig, prepare)
                 progress.start()
         rel = f"{step.sub}/{step.name}"
         image, clipped = session.take(step.pattern, rel)
@@ -247,17 +302,35 @@ def run_capture(
         progress.step(rel)
     if checks is not None:
         _end_of_stage(stage, checks, session.take, plan)
-    projector.show(np.zeros((h, w, 3), np.uint8))
-    if session.bracket is not None and response == "estimate":
-        response = None  # estimated from the brackets, not from the Gray code
+    return captured, rig
 
-    cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
-    if response == "estimate":
-        found, misfit = estimate_set_response(cs)
-        log(f"camera response estimated from the Gray code: {found.spec!r} (misfit {misfit:.4f})")
+
+def _prepare(
+    session: Session, rig: Rig, prepare: tuple[bool, tuple[float, ...] | None, bool]
+) -> tuple[Rig, LiveChecks]:
+    """Prepare the session (``prepare`` as in :func:`_take_plan`) and make the live checks
+    (mono ones for a one-channel camera) for the response it finds, else ``rig``'s; returns
+    ``rig`` with that response and the checks."""
+    search, hdr_stops, estimate = prepare
+    found = session.prepare(search, hdr_stops, rig.camera.response_curve(), estimate)
+    if found is not None:
         rig = replace(rig, camera=replace(rig.camera, response=found.spec))
-        cs = capture_set_from_raw(rig, captured["white"], captured["screen"], path=out)
-    if camera.channels == 1:
+    checks = (MonoChecks if session.camera.channels == 1 else LiveChecks)(
+        rig.camera.response_curve(), session.projector.resolution
+    )
+    return rig, checks
+
+
+def _check_set(cs: CaptureSet, mono: bool, log: Log) -> None:
+    """Check the finished set as `viewcomp calibrate` will (a ``mono`` set: its geometry only,
+    since colour order and mixing cannot be checked in it) and log the geometry's fit.
+
+    Raises:
+        FitError: the geometric calibration fails, or a capture fails its check.
+    """
+    from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
+
+    if mono:
         # colour order and mixing cannot be checked in a mono set (calibrate refuses it)
         log("checking the set's geometry as `viewcomp calibrate` will")
         stats = dict(calibrate_geometry(cs).stats)
@@ -270,12 +343,6 @@ def run_capture(
         f"Gray-code map {stats['graycode']['rms_px']:.3f} px RMS, chessboard vs map "
         f"{stats['map']['chessboard_rms_px']:.3f} px RMS"
     )
-    paths = write_capture_set(out, rig, captured["white"], captured["screen"])
-    if incomplete:
-        with atomic_open(out / RIG_FILE) as f:
-            f.write((COMPLETE_HEADER + rig_to_toml(rig)).encode("utf-8"))
-        log(f"{out / RIG_FILE}: complete the geometry (see its first lines) before calibrating")
-    return paths
 
 
 def _end_of_stage(

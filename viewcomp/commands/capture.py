@@ -14,13 +14,13 @@ if TYPE_CHECKING:
     from viewcomp.calib.emu.emulator import Emulator
     from viewcomp.calib.emu.faults import Faults
     from viewcomp.calib.hw.clock import MonotonicClock
-    from viewcomp.calib.hw.interface import Camera, Projector
+    from viewcomp.calib.hw.interface import Camera, Clock, Projector
     from viewcomp.calib.hw.simrig import SimulatedRig
     from viewcomp.calib.world.rig import Rig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from viewcomp.commands._common import add_force_argument, add_simulator_arguments
+    from viewcomp.commands._common import add_force_argument
 
     p = sub.add_parser(
         "capture",
@@ -34,6 +34,32 @@ def register(sub: argparse._SubParsersAction) -> None:
         "capture is refused.",
     )
     p.add_argument("out_dir", nargs="?", help="capture-set folder to write (new or empty)")
+    _add_device_arguments(p)
+    _add_capture_arguments(p)
+    p.add_argument(
+        "--rig",
+        default=None,
+        help="a rig.toml whose geometry to keep (resolutions are measured); without it the "
+        "written rig.toml must be completed by hand",
+    )
+    p.add_argument(
+        "--response",
+        default=None,
+        help='camera response to write into rig.toml: "estimate" (from the Gray-code '
+        'captures; the default without --rig), "srgb", "linear" or a gamma g',
+    )
+    p.add_argument("--yes", action="store_true", help="answer every prompt (unattended runs)")
+    p.add_argument(
+        "--list-monitors", action="store_true", help="list the monitors GLFW sees and exit"
+    )
+    _add_simulation_arguments(p)
+    _add_emulation_arguments(p)
+    add_force_argument(p, "capture set")
+    p.set_defaults(run=run)
+
+
+def _add_device_arguments(p: argparse.ArgumentParser) -> None:
+    """--camera, --camera-backend and --monitor: which devices to drive."""
     p.add_argument(
         "--camera",
         default=None,
@@ -48,6 +74,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "factory(spec) -> Camera in an importable module, called with --camera",
     )
     p.add_argument("--monitor", type=int, help="the projector's monitor (see --list-monitors)")
+
+
+def _add_capture_arguments(p: argparse.ArgumentParser) -> None:
+    """How each capture is taken: frames, settling, exposure, retries, automatic modes, HDR
+    and the camera's resolution."""
     p.add_argument("--frames", type=int, default=8, help="frames averaged per capture (default 8)")
     p.add_argument(
         "--settle",
@@ -87,22 +118,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--camera-size", default=None, help="camera resolution WIDTHxHEIGHT to ask the driver for"
     )
-    p.add_argument(
-        "--rig",
-        default=None,
-        help="a rig.toml whose geometry to keep (resolutions are measured); without it the "
-        "written rig.toml must be completed by hand",
-    )
-    p.add_argument(
-        "--response",
-        default=None,
-        help='camera response to write into rig.toml: "estimate" (from the Gray-code '
-        'captures; the default without --rig), "srgb", "linear" or a gamma g',
-    )
-    p.add_argument("--yes", action="store_true", help="answer every prompt (unattended runs)")
-    p.add_argument(
-        "--list-monitors", action="store_true", help="list the monitors GLFW sees and exit"
-    )
+
+
+def _add_simulation_arguments(p: argparse.ArgumentParser) -> None:
+    """--simulate and the simulator's options (the simulated projector and camera)."""
+    from viewcomp.commands._common import add_simulator_arguments
+
     sim = p.add_argument_group("simulation (no hardware)")
     sim.add_argument(
         "--simulate",
@@ -110,6 +131,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="use the simulated projector and camera instead of --camera and --monitor",
     )
     add_simulator_arguments(sim, size="--sim-size", material=True)
+
+
+def _add_emulation_arguments(p: argparse.ArgumentParser) -> None:
+    """--emulate and its injected faults (the emulated projector and camera)."""
     emu = p.add_argument_group("hardware emulation (no hardware, harsher than --simulate)")
     emu.add_argument(
         "--emulate",
@@ -136,24 +161,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "counted from 0), fail=G+G (failed reads), late=K+K (patterns lit one refresh late), "
         "drop_p=P, fail_p=P, late_p=P (probabilities)",
     )
-    add_force_argument(p, "capture set")
-    p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from viewcomp.commands._common import Log, parse_size
+    from viewcomp.commands._common import Log
 
     if args.list_monitors:
         return _list_monitors()
     if args.out_dir is None:
         raise UsageError("give the capture-set folder OUT_DIR")
     _check_out_dir(args)
-    if args.retries < 0:
-        raise UsageError(f"--retries must be >= 0, got {args.retries}")
-    if args.frames < 1:
-        raise UsageError(f"--frames must be at least 1, got {args.frames}")
-    if args.settle is not None and args.settle < 0:
-        raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
+    _check_numbers(args)
     faults = _emulator_faults(args)
     if not (args.simulate or args.emulate) and (
         (args.camera is None and args.camera_backend == "opencv") or args.monitor is None
@@ -161,11 +179,59 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             "give --camera N and --monitor M (or --simulate or --emulate for no hardware)"
         )
-    from viewcomp.calib.hw.procedure import NO_TERMINAL, console_prompt, run_capture
+    from viewcomp.calib.hw.procedure import NO_TERMINAL, run_capture
     from viewcomp.calib.io.hdr import DEFAULT_STOPS
     from viewcomp.calib.world.rig import load_rig
 
     template = load_rig(args.rig) if args.rig else None
+    response = _response(args, template)
+    if not args.yes and not _interactive():  # checked last: the other mistakes come first
+        raise UsageError(NO_TERMINAL.format(why="is not a terminal"))
+    log = Log()
+    base_prompt = (lambda stage, message: _auto(stage, message, log)) if args.yes else None
+    projector, camera, clock, prompt, settle, template = _devices(
+        args, template, faults, base_prompt
+    )
+    try:
+        paths = run_capture(
+            args.out_dir,
+            projector,
+            camera,
+            rig_template=template,
+            prompt=prompt,
+            log=log,
+            frames=args.frames,
+            settle=settle,
+            clock=clock,
+            response=response,
+            hdr_stops=DEFAULT_STOPS if args.hdr else None,
+            exposure=_exposure(args),
+            allow_auto=args.allow_auto,
+            retries=args.retries,
+        )
+    finally:
+        projector.close()
+        camera.close()
+        if args.emulate:
+            print(f"emulated devices' clock: {clock.now():.1f} s", file=sys.stderr)
+    print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
+    return 0
+
+
+def _check_numbers(args: argparse.Namespace) -> None:
+    """--retries, --frames and --settle in their ranges."""
+    if args.retries < 0:
+        raise UsageError(f"--retries must be >= 0, got {args.retries}")
+    if args.frames < 1:
+        raise UsageError(f"--frames must be at least 1, got {args.frames}")
+    if args.settle is not None and args.settle < 0:
+        raise UsageError(f"--settle is seconds >= 0, got {args.settle}")
+
+
+def _response(args: argparse.Namespace, template: Rig | None) -> str | None:
+    """The camera response to write: --response, checked; without it "estimate" on hardware
+    without --rig (with --hdr: from a bracket (Debevec), else from the Gray code), else None
+    (the template's)."""
     response = args.response
     if response is None and template is None and not (args.simulate or args.emulate):
         response = "estimate"  # with --hdr: from a bracket (Debevec), else from the Gray code
@@ -176,10 +242,22 @@ def run(args: argparse.Namespace) -> int:
             parse_response(response)
         except ValueError as e:
             raise UsageError(f"--response: {e}") from None
-    if not args.yes and not _interactive():  # checked last: the other mistakes come first
-        raise UsageError(NO_TERMINAL.format(why="is not a terminal"))
-    log = Log()
-    base_prompt = (lambda stage, message: _auto(stage, message, log)) if args.yes else None
+    return response
+
+
+def _devices(
+    args: argparse.Namespace,
+    template: Rig | None,
+    faults: Faults | None,
+    base_prompt: Callable[[str, str], bool] | None,
+) -> tuple[Projector, Camera, Clock, Callable[[str, str], bool], float, Rig | None]:
+    """The projector, camera and clock to capture with (simulated, emulated or hardware),
+    the prompt (``base_prompt``, else the console's; the simulated and emulated hands then
+    swap the screen), the settling time (s) and the rig template (the simulated and emulated
+    rigs' own geometry)."""
+    from viewcomp.calib.hw.procedure import console_prompt
+    from viewcomp.commands._common import parse_size
+
     if args.simulate:
         size = parse_size(args.sim_size) if args.sim_size else None
         rig_dev, projector, camera, template = _simulated(args, size, template)
@@ -211,30 +289,7 @@ def run(args: argparse.Namespace) -> int:
         projector, camera = _hardware(args, parse_size, clock)
         prompt = base_prompt or console_prompt
         settle = 0.1 if args.settle is None else args.settle
-    try:
-        paths = run_capture(
-            args.out_dir,
-            projector,
-            camera,
-            rig_template=template,
-            prompt=prompt,
-            log=log,
-            frames=args.frames,
-            settle=settle,
-            clock=clock,
-            response=response,
-            hdr_stops=DEFAULT_STOPS if args.hdr else None,
-            exposure=_exposure(args),
-            allow_auto=args.allow_auto,
-            retries=args.retries,
-        )
-    finally:
-        projector.close()
-        camera.close()
-        if args.emulate:
-            print(f"emulated devices' clock: {clock.now():.1f} s", file=sys.stderr)
-    print(f"wrote a camera-space capture set ({len(paths)} files) to {args.out_dir}")
-    return 0
+    return projector, camera, clock, prompt, settle, template
 
 
 def _exposure(args: argparse.Namespace) -> float | str | None:
