@@ -4,6 +4,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from viewcomp.rt.export.mpv_check import MpvCheck
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,6 +40,45 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+def _picture(args: argparse.Namespace, result: MpvCheck) -> int:
+    """mpv ran the file without an error: compare its output with the export's check value
+    (status 2 on a mismatch; 0 with a note when the file carries none)."""
+    from viewcomp.rt.export.mpv_check import TOLERANCE
+
+    said = f"{result.version} (vo={args.vo})"
+    if result.picture_ok is None:
+        why = (
+            "it carries no check value (exported before viewcomp wrote one; export it again "
+            "to have the picture checked)"
+            if result.expected is None
+            else "mpv gave no screenshot of its window"
+        )
+        print(f"{said} runs {args.shader} without an error; note: the picture could not be "
+              f"verified: {why}")  # fmt: skip
+        return 0
+    assert result.measured is not None and result.expected is not None
+    diff = np.abs(result.measured - result.expected)
+    worst = np.unravel_index(int(np.argmax(diff)), diff.shape)
+    numbers = (
+        f"block (row {worst[0]}, column {worst[1]}) channel {'RGB'[worst[2]]}: measured "
+        f"{result.measured[worst]:.2f}, expected {result.expected[worst]:.2f}; mean "
+        f"difference {diff.mean():.2f} levels, tolerance {TOLERANCE:g}"
+    )
+    if result.picture_ok:
+        print(f"{said} runs {args.shader} as exported (test still: max difference "
+              f"{diff.max():.2f} levels, tolerance {TOLERANCE:g})")  # fmt: skip
+        return 0
+    print(
+        f"viewcomp check-mpv: error: {said} loads {args.shader} but the hook did not run as "
+        f"exported: its output for the test still differs from the file's check value "
+        f"({numbers}); mpv would play the video wrongly compensated or uncompensated; fix: "
+        "export it again with this viewcomp (an edited file fails), or check mpv's OpenGL "
+        "driver and that nothing scales the window (--geometry, a window manager)",
+        file=sys.stderr,
+    )
+    return 2
+
+
 def run(args: argparse.Namespace) -> int:
     from viewcomp.rt.export.mpv_check import MpvCheckError, check_mpv
 
@@ -42,9 +87,16 @@ def run(args: argparse.Namespace) -> int:
     except MpvCheckError as exc:
         print(f"viewcomp check-mpv: error: {exc}", file=sys.stderr)
         return 2
+    if result.problems:
+        print(
+            f"viewcomp check-mpv: error: {args.shader} is cut short or edited: "
+            f"{'; '.join(result.problems[:4])}; mpv would skip its hook and play the video "
+            "uncompensated; fix: export it again with `viewcomp export-mpv` (and copy it whole)",
+            file=sys.stderr,
+        )
+        return 2
     if result.ok:
-        print(f"{result.version} (vo={args.vo}) runs {args.shader}")
-        return 0
+        return _picture(args, result)
     said = "; ".join(result.errors[:2]) or f"exit status {result.status}"
     if result.no_output:
         print(
