@@ -51,7 +51,7 @@ def _picture(args: argparse.Namespace, result: MpvCheck) -> int:
             "it carries no check value (exported before viewcomp wrote one; export it again "
             "to have the picture checked)"
             if result.expected is None
-            else "mpv gave no screenshot of its window"
+            else "mpv gave no screenshot of its window at the grid's size (--geometry)"
         )
         print(f"{said} runs {args.shader} without an error; note: the picture could not be "
               f"verified: {why}")  # fmt: skip
