@@ -15,12 +15,14 @@ if TYPE_CHECKING:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "check-mpv",
-        help="check that the installed mpv runs an exported shader (exit 2 if it rejects it)",
-        description="Run the installed mpv for one frame of a tiny still through SHADER "
-        "(with export-mpv's guard script; on this display, or a private Xvfb with --headless "
-        "or without one) and say "
-        "whether mpv ran it. mpv skips a shader it cannot parse or compile and plays "
-        "uncompensated with exit status 0; this exits with status 2 and mpv's error instead. "
+        help="check that the installed mpv runs an exported shader as exported (exit 2 if not)",
+        description="Check that SHADER holds every texture whole, run the installed mpv on "
+        "the export's test still through it (with export-mpv's guard script; on this "
+        "display, or a private Xvfb with --headless or without one) and compare a "
+        "screenshot of the window with the check value the export carries. mpv skips a "
+        "shader it cannot parse or compile, and silently a hook whose textures are missing, "
+        "and plays uncompensated with exit status 0; this exits with status 2 and what "
+        "failed instead. "
         "A video output that cannot open (no display, no GPU context) is said as such: the "
         "shader was then not tried.",
     )
