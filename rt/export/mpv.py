@@ -364,6 +364,7 @@ class _Build:
     binds: list[str] = field(default_factory=lambda: ["HOOKED"])
     textures: list[str] = field(default_factory=list)
     check: str = ""
+    check_tone: tuple[float, float] | None = None  # --param: the table's at the default angle
 
 
 def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
@@ -431,8 +432,9 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     out.textures.append(_texture("VC_LUT", lut, "rgba32f"))
     # The check value (mpv_verify): what the hook must output for the check's still, from
     # the numpy reference at this eye and tone map (with --param: the default angle's).
+    a_c, b_c = out.check_tone or (alpha, beta)
     still = check_still((w, h))
-    out.check = check_line(block_means(compensate(model, still, view, alpha, beta)), (w, h))
+    out.check = check_line(block_means(compensate(model, still, view, a_c, b_c)), (w, h))
     return out
 
 
@@ -479,10 +481,18 @@ def _build_pixel(
     })  # fmt: skip
     if req.param:
         alphas, betas = [], []
-        for a in TONE_TABLE:
+        tones = np.zeros((len(TONE_TABLE), 2))
+        for k, a in enumerate(TONE_TABLE):
             t = comp.tone_map(model, sample, cal.eye(angle=float(a)))
             alphas.append(literal(t.alpha))
             betas.append(literal(t.beta))
+            tones[k] = t.alpha, t.beta
+        # the hook interpolates the table linearly (mpv_pixel.glsl); so does the check value
+        at = float(req.angle if req.angle is not None else 90.0)
+        out.check_tone = (
+            float(np.interp(at, TONE_TABLE, tones[:, 0])),
+            float(np.interp(at, TONE_TABLE, tones[:, 1])),
+        )
         v = cal.rig.viewer
         d.update({
             "VC_LOBE_HALF": "true" if model.lobe_half else "false",

@@ -48,16 +48,21 @@ def _picture(args: argparse.Namespace, result: MpvCheck) -> int:
     from viewcomp.rt.export.mpv_check import TOLERANCE
 
     said = f"{result.version} (vo={args.vo})"
-    if result.picture_ok is None:
-        why = (
-            "it carries no check value (exported before viewcomp wrote one; export it again "
-            "to have the picture checked)"
-            if result.expected is None
-            else "mpv gave no screenshot of its window at the grid's size (--geometry)"
-        )
+    if result.expected is None:
         print(f"{said} runs {args.shader} without an error; note: the picture could not be "
-              f"verified: {why}")  # fmt: skip
+              "verified: the file carries no check value (exported before viewcomp wrote "
+              "one; export it again to have the picture checked)")  # fmt: skip
         return 0
+    if result.measured is None:  # a file that says what mpv must show, and no picture
+        size = next(a for a in result.command if a.startswith("--geometry=")).split("=")[1]
+        print(
+            f"viewcomp check-mpv: error: {said} ran {args.shader} but gave no screenshot of "
+            f"its window at the grid's size {size}, so the "
+            "picture could not be verified; fix: check with --headless (a private Xvfb), "
+            "or on a display at least the grid's size",
+            file=sys.stderr,
+        )
+        return 2
     assert result.measured is not None and result.expected is not None
     diff = np.abs(result.measured - result.expected)
     worst = np.unravel_index(int(np.argmax(diff)), diff.shape)

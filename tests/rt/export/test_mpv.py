@@ -631,3 +631,18 @@ def test_check_mpv_proves_the_hook_ran(
         got = capsys.readouterr()
         print(f"\n{name}: {got.out}{got.err}")
         assert said in got.out + got.err, name
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("angle", [60.0, 62.5])
+def test_param_check_value_is_what_the_hook_outputs(gl_ctx: Any, cal: Any, angle: float) -> None:
+    """The //!PARAM export's check value (the default angle, the tone table interpolated as
+    the hook does) is what its GLSL outputs for the check's still (Debian's mpv cannot run
+    it: this project's GL path instead)."""
+    from viewcomp.rt.export.mpv_verify import block_means, check_still, parse_check
+
+    text, _ = export_mpv_shader(cal, angle=angle, param=True)
+    grid, expected = parse_check(text) or ((0, 0), np.zeros(1))
+    got = block_means(run_hook(gl_ctx, text, check_still(grid), angle))
+    print(f"\nPARAM at {angle} deg: max {np.abs(got - expected).max():.2f} levels")
+    assert np.abs(got - expected).max() <= 3.0
