@@ -599,10 +599,11 @@ def test_check_mpv_proves_the_hook_ran(
         assert main(["export-mpv", str(bundle), "-o", str(shader), "--angle", "60",
                      "--precision", precision]) == 0  # fmt: skip
         capsys.readouterr()
-        assert main(["check-mpv", str(shader), "--headless"]) == 0
-        out = capsys.readouterr().out
-        print(out)
-        assert "as exported" in out, out
+        for vo in ("gpu", "gpu-next") if precision == "16" else ("gpu",):
+            assert main(["check-mpv", str(shader), "--headless", "--vo", vo]) == 0
+            out = capsys.readouterr().out
+            print(out)
+            assert "as exported" in out, out
     good = (tmp_path / "c16.glsl").read_text()
     start = good.index("mean levels ") + len("mean levels ")
     value = good[start : good.index(" ", start)]
