@@ -67,11 +67,18 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.calib.errors import ExportError
-from viewcomp.calib.model.reference import View, audience_normal, screen_at, tone_terms
+from viewcomp.calib.model.reference import (
+    View,
+    audience_normal,
+    compensate,
+    screen_at,
+    tone_terms,
+)
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.shader_inputs import inverse_position, paper_rows, pixel_texels
 from viewcomp.calib.world import eye as eye_limits
 from viewcomp.calib.world.audience import Audience
+from viewcomp.rt.export.mpv_verify import block_means, check_line, check_still, texture_line
 from viewcomp.shaders import array_literal, assemble, literal, vec_literal
 
 if TYPE_CHECKING:
@@ -356,6 +363,8 @@ class _Build:
     defines: dict[str, str | int | float] = field(default_factory=dict)
     binds: list[str] = field(default_factory=lambda: ["HOOKED"])
     textures: list[str] = field(default_factory=list)
+    check: str = ""
+    check_tone: tuple[float, float] | None = None  # --param: the table's at the default angle
 
 
 def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
@@ -421,6 +430,11 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
         out.defines.update({f"VC_A{i}": vec_literal(rows[i]) for i in range(3)})
     out.binds.append("VC_LUT")
     out.textures.append(_texture("VC_LUT", lut, "rgba32f"))
+    # The check value (mpv_verify): what the hook must output for the check's still, from
+    # the numpy reference at this eye and tone map (with --param: the default angle's).
+    a_c, b_c = out.check_tone or (alpha, beta)
+    still = check_still((w, h))
+    out.check = check_line(block_means(compensate(model, still, view, a_c, b_c)), (w, h))
     return out
 
 
@@ -467,10 +481,18 @@ def _build_pixel(
     })  # fmt: skip
     if req.param:
         alphas, betas = [], []
-        for a in TONE_TABLE:
+        tones = np.zeros((len(TONE_TABLE), 2))
+        for k, a in enumerate(TONE_TABLE):
             t = comp.tone_map(model, sample, cal.eye(angle=float(a)))
             alphas.append(literal(t.alpha))
             betas.append(literal(t.beta))
+            tones[k] = t.alpha, t.beta
+        # the hook interpolates the table linearly (mpv_pixel.glsl); so does the check value
+        at = float(req.angle if req.angle is not None else 90.0)
+        out.check_tone = (
+            float(np.interp(at, TONE_TABLE, tones[:, 0])),
+            float(np.interp(at, TONE_TABLE, tones[:, 1])),
+        )
         v = cal.rig.viewer
         d.update({
             "VC_LOBE_HALF": "true" if model.lobe_half else "false",
@@ -511,6 +533,10 @@ def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
         f"// Use, fullscreen on the projector (ideally at {w}x{h}):",
         "//   mpv " + " ".join(mpv_args("THIS_FILE", (w, h))) + " --fullscreen VIDEO",
         "// (the --vf fits the video to the grid as `viewcomp render` does, bars included).",
+        "// `viewcomp check-mpv THIS_FILE` runs mpv on a test still and compares the output",
+        "// with this value (mpv_verify; a plain comment, which mpv ignores):",
+        b.check,
+        texture_line(b.binds[1:]),
     ]
     if req.param:
         header.append(

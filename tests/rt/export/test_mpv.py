@@ -551,3 +551,99 @@ def test_the_guard_tells_no_video_output_from_a_rejected_shader(
     said = rejected.stdout + rejected.stderr
     assert rejected.returncode == 2, said
     assert "compensation shader was rejected" in said and "video output (" not in said
+
+
+def test_the_export_carries_its_check_value_and_texture_list(cal: Any) -> None:
+    """The check value is the numpy reference's output for the check's still (block means),
+    and the structure check finds a file cut before or inside its textures, or edited."""
+    from viewcomp.rt.export.mpv_verify import (
+        block_means,
+        check_still,
+        parse_check,
+        structure_problems,
+    )
+
+    text, info = export_mpv_shader(cal, angle=60.0)
+    grid, expected = parse_check(text) or ((0, 0), None)
+    assert grid == (W, H) and expected is not None
+    comp = Compensation(cal, "pixel")
+    p = comp(full_range_sample(), cal.eye(angle=60.0))
+    want = compensate(p.model, check_still((W, H)), cal.eye(angle=60.0), info.alpha, info.beta)
+    assert np.abs(block_means(want) - expected).max() <= 0.01
+    assert structure_problems(text) == []
+    cut = text[: text.index("//!TEXTURE")]
+    assert "no //!TEXTURE VC_ROW0" in structure_problems(cut)
+    inside = text[: text.index("//!TEXTURE VC_ROW1") + 200]
+    assert any("VC_ROW1 holds" in p for p in structure_problems(inside))
+    last = text.rstrip("\n")
+    assert any("VC_LUT holds" in p for p in structure_problems(last[:-8]))
+    bare = "\n".join(ln for ln in text.split("\n") if not ln.startswith("// viewcomp t"))
+    assert structure_problems(bare) != []  # a check line without the texture list: edited
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_check_mpv_proves_the_hook_ran(
+    mpv_display: str, cal: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`viewcomp check-mpv` passes a good export (16 and 8 bits) only after comparing mpv's
+    window with the file's check value; it fails (2) on a file cut before its textures (mpv
+    would skip the hook silently), on an altered check value and on a hook that does
+    nothing; a file without a check value (exported before) passes with a note."""
+    from viewcomp.cli import main
+
+    bundle = tmp_path / "s.vcb"
+    cal.save(bundle)
+    for precision in ("16", "8"):
+        shader = tmp_path / f"c{precision}.glsl"
+        assert main(["export-mpv", str(bundle), "-o", str(shader), "--angle", "60",
+                     "--precision", precision]) == 0  # fmt: skip
+        capsys.readouterr()
+        for vo in ("gpu", "gpu-next") if precision == "16" else ("gpu",):
+            assert main(["check-mpv", str(shader), "--headless", "--vo", vo]) == 0
+            out = capsys.readouterr().out
+            print(out)
+            assert "as exported" in out, out
+    good = (tmp_path / "c16.glsl").read_text()
+    start = good.index("mean levels ") + len("mean levels ")
+    value = good[start : good.index(" ", start)]
+    edits = {
+        "cut": (good[: good.index("//!TEXTURE")], 2, "no //!TEXTURE VC_ROW0"),
+        "altered": (
+            good[:start] + f"{float(value) + 50:.2f}" + good[start + len(value) :],
+            2,
+            "did not run as exported",
+        ),
+        "noop": (
+            good.replace("vec4 hook() {", "vec4 hook() { return HOOKED_texOff(0);"),
+            2,
+            "did not run as exported",
+        ),
+        "old": (
+            "\n".join(ln for ln in good.split("\n") if not ln.startswith("// viewcomp ")),
+            0,
+            "could not be verified",
+        ),
+    }
+    for name, (text, status, said) in edits.items():
+        shader = tmp_path / f"{name}.glsl"
+        shader.write_text(text)
+        assert main(["check-mpv", str(shader), "--headless"]) == status, name
+        got = capsys.readouterr()
+        print(f"\n{name}: {got.out}{got.err}")
+        assert said in got.out + got.err, name
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("angle", [60.0, 62.5])
+def test_param_check_value_is_what_the_hook_outputs(gl_ctx: Any, cal: Any, angle: float) -> None:
+    """The //!PARAM export's check value (the default angle, the tone table interpolated as
+    the hook does) is what its GLSL outputs for the check's still (Debian's mpv cannot run
+    it: this project's GL path instead)."""
+    from viewcomp.rt.export.mpv_verify import block_means, check_still, parse_check
+
+    text, _ = export_mpv_shader(cal, angle=angle, param=True)
+    grid, expected = parse_check(text) or ((0, 0), np.zeros(1))
+    got = block_means(run_hook(gl_ctx, text, check_still(grid), angle))
+    print(f"\nPARAM at {angle} deg: max {np.abs(got - expected).max():.2f} levels")
+    assert np.abs(got - expected).max() <= 3.0
