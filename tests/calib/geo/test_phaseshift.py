@@ -63,7 +63,8 @@ def test_phase_patterns_are_the_shifted_cosines() -> None:
 def test_phase_patterns_join_the_geometric_patterns_and_the_capture_plan() -> None:
     geo = geometric_patterns(64, 32)
     assert set(phase_names()) <= set(geo)
-    names = [s.name for s in capture_plan(64, 32) if s.sub == "screen"]
+    # the captures written (gray shown again between them is only checked)
+    names = [s.name for s in capture_plan(64, 32) if s.sub == "screen" and not s.check_only]
     assert names[-len(phase_names()) :] == phase_names()
 
 
