@@ -35,8 +35,10 @@ def write_hardware_report(out: Path, report: dict[str, Any]) -> None:
     ]
     for r in report["hardware"]:
         if r["refused"]:
-            md.append(f"| {r['profile']} | {r['screen']} | {r['capture']} | refused: "
-                      f"{r['refused']} | - | - | - | - |")  # fmt: skip
+            md.append(
+                f"| {r['profile']} | {r['screen']} | {r['capture']} | refused: "
+                f"{r['refused']} | - | - | - | - |"
+            )
             continue
         md.append(
             f"| {r['profile']} | {r['screen']} | {r['capture']} | calibrated | "

@@ -104,44 +104,74 @@ def _capture_findings(cal: Calibration) -> list[Finding]:
     h, w = cal.pixel.geometry.refl.shape[:2]
     found: list[Finding] = []
     if "full_output" in q:
-        found.append(_finding(
-            "exposure", q["full_output"], 0.35, 0.2, True,
-            "the white screen at the projector's full output, as a fraction of the camera's "
-            "range",
-            "raise the camera's exposure (capture --exposure, or let capture search it) so the "
-            "white screen at full output reaches about half the range, and capture again",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "exposure",
+                q["full_output"],
+                0.35,
+                0.2,
+                True,
+                "the white screen at the projector's full output, as a fraction of the camera's "
+                "range",
+                "raise the camera's exposure (capture --exposure, or let capture search it) so the "
+                "white screen at full output reaches about half the range, and capture again",
+            )
+        )
     if "noise" in q:
         noise = float(max(q["noise"]))
-        found.append(_finding(
-            "noise", noise, 0.03, 0.05, False,
-            "relative noise of the white screen's gray capture (largest channel)",
-            "raise the exposure, average more frames (capture --frames) or darken the room, "
-            "and capture again",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "noise",
+                noise,
+                0.03,
+                0.05,
+                False,
+                "relative noise of the white screen's gray capture (largest channel)",
+                "raise the exposure, average more frames (capture --frames) or darken the room, "
+                "and capture again",
+            )
+        )
         rms = float(np.max(cal.pixel.lobe.rms))
-        found.append(_finding(
-            "fit_vs_noise", rms / max(math.sqrt(2.0) * noise, 1e-9), 2.0, 4.0, False,
-            "the per-pixel lobe's residual over the noise of a screen/white ratio",
-            "the specular model does not describe this screen beyond the captures' noise: "
-            "check that nothing moved between the white and the real screen, and that the "
-            "real screen is flat and fixed",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "fit_vs_noise",
+                rms / max(math.sqrt(2.0) * noise, 1e-9),
+                2.0,
+                4.0,
+                False,
+                "the per-pixel lobe's residual over the noise of a screen/white ratio",
+                "the specular model does not describe this screen beyond the captures' noise: "
+                "check that nothing moved between the white and the real screen, and that the "
+                "real screen is flat and fixed",
+            )
+        )
     if "ramp_residual_median" in q:
-        found.append(_finding(
-            "ramp_residual", q["ramp_residual_median"], 0.015, 0.03, False,
-            "median error of the per-pixel model on the real screen's ramp capture, relative "
-            "to each pixel's full level",
-            "the model does not reproduce a capture it was not built from: noisy captures "
-            "(see noise), or the projector or camera changed between the captures (auto "
-            "exposure, a lamp warming up): lock the camera, let the projector warm up, and "
-            "capture again",
-        ))  # fmt: skip
-    found.append(_finding(
-        "clipped", int(info.get("clipped_pixels", 0)) / float(h * w), 0.001, 0.02, False,
-        "fraction of the pixels clipped in some capture (left out of the fits)",
-        "capture with --hdr (or lower the exposure) so the highlight is measured",
-    ))  # fmt: skip
+        found.append(
+            _finding(
+                "ramp_residual",
+                q["ramp_residual_median"],
+                0.015,
+                0.03,
+                False,
+                "median error of the per-pixel model on the real screen's ramp capture, relative "
+                "to each pixel's full level",
+                "the model does not reproduce a capture it was not built from: noisy captures "
+                "(see noise), or the projector or camera changed between the captures (auto "
+                "exposure, a lamp warming up): lock the camera, let the projector warm up, and "
+                "capture again",
+            )
+        )
+    found.append(
+        _finding(
+            "clipped",
+            int(info.get("clipped_pixels", 0)) / float(h * w),
+            0.001,
+            0.02,
+            False,
+            "fraction of the pixels clipped in some capture (left out of the fits)",
+            "capture with --hdr (or lower the exposure) so the highlight is measured",
+        )
+    )
     return found
 
 
@@ -150,29 +180,50 @@ def _geometry_findings(geo: dict[str, Any]) -> list[Finding]:
     found: list[Finding] = []
     gc = geo.get("graycode") or {}
     ph = geo.get("phase") or {}
-    decoded = [v for v in (gc.get("decoded_fraction_of_lit"),
-                           ph.get("decoded_fraction_of_lit")) if v is not None]  # fmt: skip
+    decoded = [
+        v
+        for v in (gc.get("decoded_fraction_of_lit"), ph.get("decoded_fraction_of_lit"))
+        if v is not None
+    ]
     if decoded:  # the phase maps the pixels a coarse camera's Gray code cannot
-        found.append(_finding(
-            "coverage", max(decoded), 0.9, 0.7, True,
-            "fraction of the lit camera pixels whose projector position was decoded",
-            "make the whole projected image visible and in focus, raise the exposure, and "
-            "capture again",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "coverage",
+                max(decoded),
+                0.9,
+                0.7,
+                True,
+                "fraction of the lit camera pixels whose projector position was decoded",
+                "make the whole projected image visible and in focus, raise the exposure, and "
+                "capture again",
+            )
+        )
     if gc.get("plane_agreement_min") is not None:
-        found.append(_finding(
-            "decode", gc["plane_agreement_min"], 0.95, 0.85, True,
-            "the least agreement of a Gray-code plane with the chessboard's prediction",
-            "the finest stripes are not resolved or the camera shook: focus the camera, "
-            "raise the exposure, and capture again",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "decode",
+                gc["plane_agreement_min"],
+                0.95,
+                0.85,
+                True,
+                "the least agreement of a Gray-code plane with the chessboard's prediction",
+                "the finest stripes are not resolved or the camera shook: focus the camera, "
+                "raise the exposure, and capture again",
+            )
+        )
     mp = geo.get("map") or {}
     if mp.get("chessboard_rms_px") is not None:
-        found.append(_finding(
-            "geometry", mp["chessboard_rms_px"], 0.5, 1.0, False,
-            "camera px RMS between the Gray-code map and the chessboard's corners",
-            "fix the camera firmly (it moved or vibrated) and capture again",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "geometry",
+                mp["chessboard_rms_px"],
+                0.5,
+                1.0,
+                False,
+                "camera px RMS between the Gray-code map and the chessboard's corners",
+                "fix the camera firmly (it moved or vibrated) and capture again",
+            )
+        )
     return found
 
 
@@ -186,13 +237,19 @@ def judge(cal: Calibration) -> Verdict:
     paper_level = None
     if cal.paper is not None:
         r2 = float(np.min(cal.paper.fit.r2))
-        found.append(_finding(
-            "paper_fit", r2, 0.6, 0.4, True,
-            "R^2 of the paper's Phong regression (least channel)",
-            "the paper's method will compensate the highlight poorly here; prefer the "
-            "per-pixel method (--method pixel, the default)",
-            scope="paper method",
-        ))  # fmt: skip
+        found.append(
+            _finding(
+                "paper_fit",
+                r2,
+                0.6,
+                0.4,
+                True,
+                "R^2 of the paper's Phong regression (least channel)",
+                "the paper's method will compensate the highlight poorly here; prefer the "
+                "per-pixel method (--method pixel, the default)",
+                scope="paper method",
+            )
+        )
         paper_level = found[-1].level
     core = [f.level for f in found if f.scope == "calibration"]
     level = max(core, key=LEVELS.index) if core else "usable"

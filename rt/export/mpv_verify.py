@@ -79,8 +79,10 @@ def parse_check(text: str) -> tuple[tuple[int, int], np.ndarray] | None:
     line = next((ln for ln in text.splitlines() if ln.startswith(CHECK_PREFIX)), None)
     if line is None:
         return None
-    m = re.fullmatch(r"test still (\d+)x(\d+), (\d+)x\3 blocks RGB mean levels ([-\d. ]+)",
-                     line[len(CHECK_PREFIX):].strip())  # fmt: skip
+    m = re.fullmatch(
+        r"test still (\d+)x(\d+), (\d+)x\3 blocks RGB mean levels ([-\d. ]+)",
+        line[len(CHECK_PREFIX) :].strip(),
+    )
     if m is None or int(m[3]) != BLOCKS:
         raise ValueError(f"the check line does not parse: {line[:80]!r}")
     values = np.array([float(v) for v in m[4].split()])

@@ -74,9 +74,23 @@ class FfmpegPipeWriter:
             raise VideoError(f"cannot write video {describe_os_error(exc, self.path)}") from exc
         self.tmp = self._target.tmp
         rate = Fraction(rate)
-        cmd = [exe, "-hide_banner", "-loglevel", "error", "-y",
-               "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}",
-               "-framerate", f"{rate.numerator}/{rate.denominator}", "-i", "pipe:0"]  # fmt: skip
+        cmd = [
+            exe,
+            "-hide_banner",
+            "-loglevel",
+            "error",
+            "-y",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "-s",
+            f"{width}x{height}",
+            "-framerate",
+            f"{rate.numerator}/{rate.denominator}",
+            "-i",
+            "pipe:0",
+        ]
         how = plan.audio_plan(audio_codec) if audio_source is not None else None
         if how is not None:
             if audio_shift:
@@ -91,8 +105,9 @@ class FfmpegPipeWriter:
         self.command = cmd
         self._log = tempfile.TemporaryFile()
         try:
-            self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                         stderr=self._log)  # fmt: skip
+            self.proc = subprocess.Popen(
+                cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._log
+            )
         except OSError as exc:
             self._log.close()
             self._target.discard(exc)

@@ -151,10 +151,16 @@ CODECS: dict[str, VideoCodec] = {
 
 # Names people use for the codecs -> the encoder.
 ALIASES = {
-    "h264": "libx264", "x264": "libx264", "h265": "libx265", "hevc": "libx265",
-    "x265": "libx265", "vp9": "libvpx-vp9", "av1": "libsvtav1", "prores": "prores_ks",
+    "h264": "libx264",
+    "x264": "libx264",
+    "h265": "libx265",
+    "hevc": "libx265",
+    "x265": "libx265",
+    "vp9": "libvpx-vp9",
+    "av1": "libsvtav1",
+    "prores": "prores_ks",
     "dnxhr": "dnxhd",
-}  # fmt: skip
+}
 
 _PCM = {"pcm_s16le", "pcm_s24le", "pcm_s32le", "pcm_f32le", "pcm_s16be", "pcm_s24be"}
 
@@ -178,18 +184,31 @@ class Container:
 
 _NVENC = ("h264_nvenc", "hevc_nvenc")
 CONTAINERS: tuple[Container, ...] = (
-    Container((".mp4", ".m4v"), "mp4", ("libx264", "libx265", "libsvtav1", *_NVENC),
-              frozenset({"aac", "mp3", "alac", "opus", "flac", "ac3", "eac3"}), "aac"),
-    Container((".mov",), "mov",
-              ("libx264", "libx265", "prores_ks", "dnxhd", "hap", *_NVENC),
-              frozenset({"aac", "alac", "mp3", *_PCM}), "aac"),
-    Container((".mkv",), "matroska",
-              ("libx264", "libx265", "libvpx-vp9", "libsvtav1", "ffv1", *_NVENC),
-              frozenset({"aac", "mp3", "opus", "vorbis", "flac", "ac3", "eac3", "alac", *_PCM}),
-              "libopus"),
-    Container((".webm",), "webm", ("libvpx-vp9", "libsvtav1"),
-              frozenset({"opus", "vorbis"}), "libopus"),
-)  # fmt: skip
+    Container(
+        (".mp4", ".m4v"),
+        "mp4",
+        ("libx264", "libx265", "libsvtav1", *_NVENC),
+        frozenset({"aac", "mp3", "alac", "opus", "flac", "ac3", "eac3"}),
+        "aac",
+    ),
+    Container(
+        (".mov",),
+        "mov",
+        ("libx264", "libx265", "prores_ks", "dnxhd", "hap", *_NVENC),
+        frozenset({"aac", "alac", "mp3", *_PCM}),
+        "aac",
+    ),
+    Container(
+        (".mkv",),
+        "matroska",
+        ("libx264", "libx265", "libvpx-vp9", "libsvtav1", "ffv1", *_NVENC),
+        frozenset({"aac", "mp3", "opus", "vorbis", "flac", "ac3", "eac3", "alac", *_PCM}),
+        "libopus",
+    ),
+    Container(
+        (".webm",), "webm", ("libvpx-vp9", "libsvtav1"), frozenset({"opus", "vorbis"}), "libopus"
+    ),
+)
 
 
 def is_sequence_pattern(path: str | Path) -> bool:
@@ -447,8 +466,13 @@ def ffmpeg_encoders() -> frozenset[str] | None:
     if exe is None:
         return None
     try:
-        out = subprocess.run([exe, "-hide_banner", "-encoders"], capture_output=True,
-                             text=True, timeout=30, check=False).stdout  # fmt: skip
+        out = subprocess.run(
+            [exe, "-hide_banner", "-encoders"],
+            capture_output=True,
+            text=True,
+            timeout=30,
+            check=False,
+        ).stdout
     except (OSError, subprocess.SubprocessError):
         return None
     names = set()

@@ -27,8 +27,12 @@ from viewcomp.calib.io.atomic import atomic_dir, atomic_path
 from viewcomp.rt.media.video import AudioMode
 
 # OpenCV's writer parameters per extension: JPEG quality 95 at 4:4:4, TIFF LZW (lossless).
-_JPEG = [cv2.IMWRITE_JPEG_QUALITY, 95, cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
-         cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]  # fmt: skip
+_JPEG = [
+    cv2.IMWRITE_JPEG_QUALITY,
+    95,
+    cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+    cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444,
+]
 _TIFF = [cv2.IMWRITE_TIFF_COMPRESSION, 5]  # 5: LZW
 _PARAMS = {".png": [], ".jpg": _JPEG, ".jpeg": _JPEG, ".tif": _TIFF, ".tiff": _TIFF}
 

@@ -130,7 +130,12 @@ def landmarks_of_head(
         up = np.cross(back, side)
         c, s = np.cos(t), -np.sin(t)  # positive: the nose toward the image's right
         side_t, back_t = c * side + s * back, c * back - s * side
-        pts = np.stack([p - 0.5 * ipd * side_t, p + 0.5 * ipd * side_t,
-                        p + nose_depth * ipd * back_t - 0.5 * ipd * up])  # fmt: skip
+        pts = np.stack(
+            [
+                p - 0.5 * ipd * side_t,
+                p + 0.5 * ipd * side_t,
+                p + nose_depth * ipd * back_t - 0.5 * ipd * up,
+            ]
+        )
         out[i] = device.project(pts)
     return out

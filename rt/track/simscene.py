@@ -77,9 +77,11 @@ def _relief(
     xn, yn = nose
     t = np.clip(y / yn, 0.0, 1.0) if yn < 0 else np.zeros_like(y)
     cx = t * xn  # the ridge runs from between the eyes to the tip
-    along = np.where(y > 0, 0.35 * np.exp(-0.5 * (y / (0.12 * ipd)) ** 2),
-                     np.where(y >= yn, 0.35 + 0.65 * t,
-                              np.exp(-0.5 * ((y - yn) / (0.12 * ipd)) ** 2)))  # fmt: skip
+    along = np.where(
+        y > 0,
+        0.35 * np.exp(-0.5 * (y / (0.12 * ipd)) ** 2),
+        np.where(y >= yn, 0.35 + 0.65 * t, np.exp(-0.5 * ((y - yn) / (0.12 * ipd)) ** 2)),
+    )
     across = np.exp(-0.5 * ((x - cx) / (0.28 * ipd)) ** 2)
     # the head's roundness: a vertical cylinder of radius 1.3 IPD (82 mm) through the eyes,
     # so the far cheek recedes and the outline moves when the head turns

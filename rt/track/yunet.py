@@ -105,8 +105,9 @@ class YuNetDetector:
         except cv2.error as exc:
             raise DetectorError(f"OpenCV cannot load the face model {self.path}: {exc}") from None
         self._size = (320, 320)
-        self.crop_net = cv2.FaceDetectorYN.create(str(self.path), "", (320, 320), c.score,
-                                                  c.nms, c.top_k)  # fmt: skip
+        self.crop_net = cv2.FaceDetectorYN.create(
+            str(self.path), "", (320, 320), c.score, c.nms, c.top_k
+        )
         self._crop_size = (320, 320)
 
     def _refine(self, frame: np.ndarray, box: np.ndarray) -> np.ndarray | None:

@@ -49,9 +49,11 @@ def _picture(args: argparse.Namespace, result: MpvCheck) -> int:
 
     said = f"{result.version} (vo={args.vo})"
     if result.expected is None:
-        print(f"{said} runs {args.shader} without an error; note: the picture could not be "
-              "verified: the file carries no check value (exported before viewcomp wrote "
-              "one; export it again to have the picture checked)")  # fmt: skip
+        print(
+            f"{said} runs {args.shader} without an error; note: the picture could not be "
+            "verified: the file carries no check value (exported before viewcomp wrote "
+            "one; export it again to have the picture checked)"
+        )
         return 0
     if result.measured is None:  # a file that says what mpv must show, and no picture
         size = next(a for a in result.command if a.startswith("--geometry=")).split("=")[1]
@@ -72,8 +74,10 @@ def _picture(args: argparse.Namespace, result: MpvCheck) -> int:
         f"difference {diff.mean():.2f} levels, tolerance {TOLERANCE:g}"
     )
     if result.picture_ok:
-        print(f"{said} runs {args.shader} as exported (test still: max difference "
-              f"{diff.max():.2f} levels, tolerance {TOLERANCE:g})")  # fmt: skip
+        print(
+            f"{said} runs {args.shader} as exported (test still: max difference "
+            f"{diff.max():.2f} levels, tolerance {TOLERANCE:g})"
+        )
         return 0
     print(
         f"viewcomp check-mpv: error: {said} loads {args.shader} but the hook did not run as "
