@@ -166,6 +166,7 @@ class PlaylistPump:
         grid = self.renderer.grid
         seq, gen, index, start, jumped = 0, 0, 0, 0.0, False
         bad = 0  # unreadable files in a row
+        unreadable: set[Path] = set()  # said once each, until readable again
         audio_mode = "frames" if self._audio is not None else "none"
         try:
             while not self._stop.is_set():
@@ -195,7 +196,9 @@ class PlaylistPump:
                         start_at=start,
                     )
                 except VideoError as exc:
-                    log.error("skipping: %s", exc)
+                    if path not in unreadable:  # a looping kiosk would say it every loop
+                        log.error("skipping: %s (said once, until it can be read again)", exc)
+                        unreadable.add(path)
                     bad += 1
                     if bad >= len(playlist):
                         self._put(
@@ -211,6 +214,9 @@ class PlaylistPump:
                     index, start = index + 1, 0.0
                     continue
                 bad = 0
+                if path in unreadable:
+                    unreadable.discard(path)
+                    log.info("playlist: %s can be read again", path.name)
                 jump = None
                 if not self._forward(reader, path, seq, gen, index, jumped):
                     return

@@ -430,3 +430,38 @@ def test_systemd_hears_ready_after_the_first_frame_and_watchdog_pings(
     assert len(ready) == 1 and ready[0] >= 1, heard[:5]  # after the first swap, once
     assert any(m == b"WATCHDOG=1" for _, m in heard)
     assert heard[-1][1] == b"STOPPING=1"
+
+
+@pytest.mark.gl
+def test_a_deleted_playlist_file_is_skipped_with_one_log_line(
+    display: str, cal: Any, short_clip: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A looping kiosk whose second file is deleted while it plays: the player goes on with
+    the others and says so once (not once per loop); put back, the file plays again and the
+    player says that too."""
+    import logging
+    import shutil
+
+    from viewcomp.rt.play.player import Player
+
+    a, b = tmp_path / "a.mp4", tmp_path / "b.mp4"
+    shutil.copyfile(short_clip, a)
+    shutil.copyfile(short_clip, b)
+    state = {"deleted_at": None, "restored": False}
+
+    def on_frame(player: Any, f: Any) -> None:
+        if state["deleted_at"] is None and f.index >= 3:
+            b.unlink()  # deleted while the first file plays
+            state["deleted_at"] = f.index
+        elif not state["restored"] and f.index >= 60:  # several loops later
+            shutil.copyfile(short_clip, b)
+            state["restored"] = True
+
+    with caplog.at_level(logging.INFO, logger="viewcomp.rt.play"):
+        stats = Player(cal, [a, b], _options(loop=True, max_seconds=8.0), on_frame=on_frame).run()
+    msgs = [r.getMessage() for r in caplog.records]
+    skipped = [m for m in msgs if m.startswith("skipping") and "b.mp4" in m]
+    print(f"\n{stats.presented} frames; log: {[m[:70] for m in msgs if 'b.mp4' in m]}")
+    assert state["restored"], "the clip did not loop long enough to test the return"
+    assert len(skipped) == 1, msgs
+    assert any("b.mp4 can be read again" in m for m in msgs), msgs
