@@ -71,9 +71,11 @@ def emulated_capture(
     seconds it took on the emulated devices' clock."""
     from viewcomp.calib.hw.procedure import run_capture
 
+    # raw frames are linear; an encoding camera's curve is what a user does not know: it is
+    # estimated from the captures, as `viewcomp capture` does without a --response
     written = written_rig(emu.truth.rig)
-    response = "linear" if emu.profile.linear else "srgb"
-    template = replace(written, camera=replace(written.camera, response=response))
+    template = replace(written, camera=replace(written.camera, response="linear"))
+    response = None if emu.profile.linear else "estimate"
 
     def prompt(stage: str, _message: str) -> bool:
         emu.swap_screen(stage)
@@ -89,6 +91,7 @@ def emulated_capture(
         log=log or (lambda _m: None),
         frames=frames,
         clock=emu.clock,
+        response=response,
         hdr_stops=DEFAULT_STOPS if hdr else None,
         exposure="auto",
     )
