@@ -139,6 +139,18 @@ class Bracket:
             self._set("exposure", self.base)
             if self.has_gain:
                 self._set("gain", self.base_gain)
+        if len(rels) < 2 and left_out:
+            period_ms = 1000.0 / (self.refresh_hz or 1.0)
+            raise DeviceError(
+                f"{self.camera.name}: no HDR bracket fits in whole projector refresh periods: "
+                f"the base exposure ({self.base * 1000:.3g} ms at gain {self.base_gain:.3g}) "
+                f"is already within a few periods ({period_ms:.3g} ms each), so "
+                f"{', '.join(fraction(s) for s in left_out)} of it would need less light than "
+                "one period at the camera's base gain (a DLP's colour sub-frames only add up "
+                "over whole periods); lower the projector's brightness, close the aperture or "
+                "add an ND filter so that the white screen needs a longer exposure, or "
+                "capture without --hdr"
+            )
         if len(rels) < 2:
             raise DeviceError(
                 f"{self.camera.name} does not change its exposure (asked for {len(self.stops)} "

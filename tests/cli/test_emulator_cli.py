@@ -35,8 +35,8 @@ def test_emulator_usage_errors(tmp_path: Path, capsys, argv: list[str], said: st
 def test_a_bumped_camera_is_refused(tmp_path: Path, capsys) -> None:
     out = tmp_path / "caps"
     argv = ["capture", str(out), "--emulate", "webcam", "--sim-size", "160x80", "--yes"]
-    # an exposure given: the exposure search cannot reach its target in whole refresh periods
-    # on this webcam (a limit of the procedure, not what this test is about)
+    # a fixed exposure: --bump-at counts every pattern shown, the exposure search's included,
+    # and K = 20 is to land among the captures compared with gray
     argv += ["--exposure", "0.0333"]
     assert main([*argv, "--seed", "3", "--frames", "2", "--bump-at", "20:3"]) == 2
     err = capsys.readouterr().err
@@ -53,3 +53,16 @@ def test_dslr_capture_end_to_end(tmp_path: Path, capsys) -> None:
     assert rig.camera.response == "linear" and rig.camera.resolution == (640, 360)
     assert rig.projector.resolution == (160, 80)
     assert "a read failed" in capsys.readouterr().err  # retried, not fatal
+
+
+@pytest.mark.slow
+def test_webcam_hdr_is_refused_naming_the_refresh_period(tmp_path: Path, capsys) -> None:
+    """A 60 Hz webcam whose white screen needs one refresh period has no shorter bracket stop
+    in whole periods: refused saying so and what to change, not as a camera whose exposure
+    cannot be set."""
+    argv = ["capture", str(tmp_path / "c"), "--emulate", "webcam", "--sim-size", "160x80"]
+    assert main([*argv, "--yes", "--hdr"]) == 2
+    err = capsys.readouterr().err
+    assert "no HDR bracket fits in whole projector refresh periods" in err, err
+    assert "ND filter" in err and "does not change its exposure" not in err
+    assert not (tmp_path / "c").exists()
