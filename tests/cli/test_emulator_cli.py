@@ -56,13 +56,17 @@ def test_dslr_capture_end_to_end(tmp_path: Path, capsys) -> None:
 
 
 @pytest.mark.slow
-def test_webcam_hdr_is_refused_naming_the_refresh_period(tmp_path: Path, capsys) -> None:
-    """A 60 Hz webcam whose white screen needs one refresh period has no shorter bracket stop
-    in whole periods: refused saying so and what to change, not as a camera whose exposure
-    cannot be set."""
-    argv = ["capture", str(tmp_path / "c"), "--emulate", "webcam", "--sim-size", "160x80"]
-    assert main([*argv, "--yes", "--hdr"]) == 2
+@pytest.mark.parametrize("profile", ["webcam", "mono12"])
+def test_hdr_on_a_camera_whose_white_needs_a_period_or_two_is_bracketed_upward(
+    tmp_path: Path, capsys, profile: str
+) -> None:
+    """A 60 Hz webcam (or machine-vision camera) whose white screen needs one or two refresh
+    periods has no shorter stop in whole periods: the bracket goes upward from one period
+    and the set is written as linear .npy captures."""
+    out = tmp_path / "c"
+    argv = ["capture", str(out), "--emulate", profile, "--sim-size", "160x80", "--frames", "2"]
+    assert main([*argv, "--yes", "--hdr"]) == 0, capsys.readouterr().err
     err = capsys.readouterr().err
-    assert "no HDR bracket fits in whole projector refresh periods" in err, err
-    assert "ND filter" in err and "does not change its exposure" not in err
-    assert not (tmp_path / "c").exists()
+    assert "HDR bracket: taken upward" in err, err
+    assert (out / "screen" / "graycode_00.npy").is_file()
+    assert (out / "white" / "gray.npy").is_file()
