@@ -132,7 +132,8 @@ def calibrate(
     """
     say = log or (lambda _msg: None)
     geometry_stats = None
-    if is_mono_set([cs.white[n] for n in ("red", "green", "blue") if n in cs.white]):
+    mono = is_mono_set([cs.white[n] for n in ("red", "green", "blue") if n in cs.white])
+    if mono and "red_alone" not in cs.white:
         raise FitError("white/red", MONO_REFUSAL)
     if cs.rig.capture.space != "projector":
         say("rectifying the camera's captures onto the projector grid (chessboard, Gray code)")
@@ -140,7 +141,11 @@ def calibrate(
             rectify_capture_set,  # camera frames -> the projector grid
         )
 
-        cs, geometry_stats = rectify_capture_set(cs)
+        cs, geometry_stats = rectify_capture_set(cs, check_order=not mono)
+    mono_info: dict[str, float] = {}
+    if mono:
+        say("a mono camera's set: the captures in the per-primary basis (docs/MODEL.md)")
+        cs, mono_info = _per_primary_set(cs)
     check_captures(cs)
     t0 = time.perf_counter()
     geometry = ScreenGeometry.from_rig(cs.rig)
@@ -179,4 +184,21 @@ def calibrate(
     info["seconds"] = round(time.perf_counter() - t0, 2)
     if geometry_stats is not None:
         info["geometry"] = geometry_stats
+    if mono_info:
+        info["mono"] = mono_info
     return Calibration(rig=cs.rig, paper=paper, pixel=pixel, info=info)
+
+
+def _per_primary_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, float]]:
+    """A mono camera's set (on the projector grid) with its Table 1 captures in the
+    per-primary basis (:mod:`viewcomp.calib.fit.mono`), and each stage's additivity misfit."""
+    from dataclasses import replace
+
+    from viewcomp.calib.fit.mono import per_primary_images
+
+    white, add_w = per_primary_images(cs.white, "white")
+    screen, add_s = per_primary_images(cs.screen, "screen")
+    return replace(cs, white=white, screen=screen), {
+        "additivity_white": round(add_w, 4),
+        "additivity_screen": round(add_s, 4),
+    }

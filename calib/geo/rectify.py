@@ -299,13 +299,16 @@ def calibrate_geometry(cs: CaptureSet) -> Geometry:
     return Geometry(pmap, corners, gc, stats)
 
 
-def rectify_capture_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, Any]]:
+def rectify_capture_set(
+    cs: CaptureSet, check_order: bool = True
+) -> tuple[CaptureSet, dict[str, Any]]:
     """Rectify a ``space = "camera"`` capture set onto the projector grid.
 
     Returns a CaptureSet whose ``white`` and ``screen`` hold the Table-1 captures (and black)
     as float32 (H, W, 3) linear on the projector grid, with saturation fractions measured on
     the projector grid (the rig is unchanged); and the geometric statistics of
-    :func:`calibrate_geometry`.
+    :func:`calibrate_geometry`. ``check_order``: refuse colour captures in the wrong order
+    (False for a mono camera's set, whose colours are grey).
 
     Raises:
         FitError: a capture that makes geometric calibration or rectification impossible.
@@ -332,7 +335,8 @@ def rectify_capture_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, Any]]:
                 clipped[(caps.sub, n)] = np.any(top > 0, axis=-1) if top.ndim == 3 else top > 0
             else:
                 fractions[(caps.sub, n)] = 0.0
-        check_pattern_order(rect[caps.sub], caps.sub)
+        if check_order:  # a mono set's colour order shows only in the per-primary basis
+            check_pattern_order(rect[caps.sub], caps.sub)
     stats["seconds"] = round(time.perf_counter() - t0, 2)
     out = CaptureSet(
         rig=cs.rig,

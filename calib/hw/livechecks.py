@@ -95,7 +95,9 @@ class LiveChecks:
         if frac > SATURATION_LIMIT:
             raise CaptureError(
                 f"{rel}: {frac:.1%} of the lit pixels are clipped even in the bracket's shortest "
-                "exposure: lower the camera's exposure (--exposure) and capture again"
+                "exposure: lower the camera's exposure (--exposure), or, when that is one "
+                "projector refresh period already (an upward bracket), the projector's "
+                "brightness (or add an ND filter), and capture again"
             )
         self.check_linear(sub, name, lin, np.any(clipped, axis=2))
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewcomp.calib.io.patterns import table1_patterns
+from viewcomp.calib.io.patterns import primary_patterns, table1_patterns
 from viewcomp.calib.sim.simcamera import geometric_patterns
 
 TABLE1_ORDER = ("black", "gray", "red", "green", "blue", "ramp")
@@ -44,13 +44,18 @@ def is_reference_again(name: str) -> bool:
     return name.startswith(f"{REFERENCE} (again")
 
 
-def capture_plan(width: int, height: int) -> list[Step]:
-    """Every capture of a camera-space set, in order, for a width x height projector."""
+def capture_plan(width: int, height: int, mono: bool = False) -> list[Step]:
+    """Every capture of a camera-space set, in order, for a width x height projector; a
+    ``mono`` camera's stages add each primary alone
+    (:func:`~viewcomp.calib.io.patterns.primary_patterns`) after Table 1."""
     t1 = table1_patterns(width, height)
     geo = geometric_patterns(width, height)
+    prim = primary_patterns(width, height) if mono else {}
     white = [Step("white", n, t1[n]) for n in TABLE1_ORDER]
+    white += [Step("white", n, p) for n, p in prim.items()]
     white.append(Step("white", "chessboard", geo["chessboard"]))
     screen = [Step("screen", n, t1[n]) for n in TABLE1_ORDER]
+    screen += [Step("screen", n, p) for n, p in prim.items()]
     screen += [Step("screen", n, p) for n, p in geo.items()]
     return _with_references(white, t1[REFERENCE]) + _with_references(screen, t1[REFERENCE])
 

@@ -212,7 +212,7 @@ def run_capture(
     if camera.channels == 1:
         log(f"warning: {camera.name} is mono: {MONO_LIMITS}")
     session = Session(projector, camera, clock, reader, log, frames, settle)
-    plan = capture_plan(w, h)
+    plan = capture_plan(w, h, camera.channels == 1)
     progress = Progress(len(plan), clock, log)
     prepare = (exposure == "auto", hdr_stops, hdr_stops is not None and response == "estimate")
     captured, rig = _take_plan(plan, session, prompt, progress, rig, prepare)

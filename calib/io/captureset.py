@@ -33,10 +33,11 @@ from viewcomp.calib.io.imageio import (
     write_png,
 )
 from viewcomp.calib.io.paths import check_input_file, path_problem
+from viewcomp.calib.io.patterns import PRIMARY_PATTERNS
 from viewcomp.calib.world.rig import Rig, load_rig, rig_to_toml
 
 REQUIRED = ("red", "green", "blue", "gray", "ramp")
-OPTIONAL = ("black",)
+OPTIONAL = ("black", *PRIMARY_PATTERNS)  # the primaries alone: a mono camera's set
 SUBS = ("white", "screen")
 RIG_FILE = "rig.toml"
 

@@ -83,9 +83,10 @@ def _check_colours_against_gray(cs: CaptureSet, sub: str) -> None:
 
 
 MONO_REFUSAL = (
-    "the colour captures have R = G = B everywhere: a mono camera's set, which holds no colour "
-    "and so no colour mixing to fit; capture again with a colour camera (a mono camera "
-    "calibrates the geometry only)"
+    "the colour captures have R = G = B everywhere: a mono camera's set, but without each "
+    "projector primary shown alone (red_alone, ramp_red, ...), which a mono camera's fits need "
+    "in place of colour; capture the set again with `viewcomp capture` (it takes them with a "
+    "mono camera), or with a colour camera"
 )
 #: The least share of a capture's pixels that must be unclipped to judge it mono.
 MONO_MIN_UNCLIPPED = 0.01

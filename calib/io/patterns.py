@@ -60,6 +60,28 @@ def table1_patterns(w: int, h: int) -> dict[str, np.ndarray]:
     return out
 
 
+#: The per-primary patterns a mono camera's set adds (docs/MODEL.md, "Mono cameras"): each
+#: projector primary alone at the gray level (``red_alone`` = (110, 0, 0), ...) and alone on
+#: the ramp (``ramp_red`` = every row :func:`ramp_levels` in red only, ...).
+PRIMARY_PATTERNS = ("red_alone", "green_alone", "blue_alone", "ramp_red", "ramp_green", "ramp_blue")
+
+
+def primary_patterns(w: int, h: int) -> dict[str, np.ndarray]:
+    """The :data:`PRIMARY_PATTERNS`, each (h, w, 3) uint8: primary j alone at
+    :data:`GRAY_LEVEL` (the others 0), and primary j alone on the ramp."""
+    _check_size(w, h, min_w=2)
+    out: dict[str, np.ndarray] = {}
+    levels = ramp_levels(w)
+    for j, colour in enumerate(("red", "green", "blue")):
+        alone = np.zeros((h, w, 3), np.uint8)
+        alone[..., j] = int(GRAY_LEVEL)
+        out[f"{colour}_alone"] = alone
+        ramp = np.zeros((h, w, 3), np.uint8)
+        ramp[..., j] = levels[None, :]
+        out[f"ramp_{colour}"] = ramp
+    return {name: out[name] for name in PRIMARY_PATTERNS}
+
+
 def chessboard(w: int, h: int, squares: tuple[int, int] = (9, 6)) -> tuple[np.ndarray, np.ndarray]:
     """A black-and-white chessboard centred on a white margin, for cv2.findChessboardCorners.
 

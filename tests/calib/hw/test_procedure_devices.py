@@ -218,8 +218,19 @@ def test_a_mono_camera_captures_three_equal_channels(tmp_path: Path) -> None:
     images = [cs.white[n] for n in ("gray", "red", "blue")] + [cs.screen["green"]]
     assert is_mono_set(images)
     assert load_rig(tmp_path / "caps" / "rig.toml").capture.space == "camera"
-    # calibrate refuses it, saying why, rather than failing on "wrong order"
-    with pytest.raises(FitError, match=r"white/red.*mono camera.*colour camera"):
+    assert "red_alone" in cs.white and "ramp_blue" in cs.screen
+    # calibrate fits it in the per-primary basis: the primaries do not mix there
+    cal = calibrate(cs)
+    wt = cal.pixel.white.W / np.diagonal(cal.pixel.white.W, axis1=2, axis2=3)[..., None, :]
+    off = wt[..., ~np.eye(3, dtype=bool)]
+    assert float(np.abs(off).max()) < 1e-6
+    assert cal.info["mono"]["additivity_white"] < 0.05
+    # a mono set without the primaries alone is refused, saying what to do
+    for sub in (cs.white, cs.screen):
+        for n in list(sub):
+            if n.endswith("_alone") or n.startswith("ramp_"):
+                del sub[n]
+    with pytest.raises(FitError, match=r"white/red.*mono camera.*primary shown alone"):
         calibrate(cs)
 
 
