@@ -92,7 +92,7 @@ def _add_capture_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help="camera exposure in seconds (with --simulate: 1 s is the simulator's unit "
-        "exposure); with --hdr the bracket's longest exposure. Default: searched with the "
+        "exposure); with --hdr the bracket's base (relative exposure 1). Default: searched with the "
         "white screen up, so that the brightest pattern's lit region reaches 80%% of full scale",
     )
     p.add_argument(
@@ -110,10 +110,11 @@ def _add_capture_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--hdr",
         action="store_true",
-        help="bracket every capture (relative exposures 1, 1/4, 1/16, 1/64, 1/256 set through "
-        "the camera's exposure control, as far as it goes) and merge the frames into float32 "
-        "linear .npy captures; needs a camera whose exposure OpenCV can set and a known "
-        "response (--response or --rig)",
+        help="bracket every capture in whole projector refresh periods (relative exposures 1, "
+        "1/4, 1/16, 1/64, 1/256 of the camera's exposure, as far as whole periods go; when "
+        "fewer than two fit, upward: one period at gain 1, then 4 and 16 times it) and merge "
+        "the frames into float32 linear .npy captures; needs a camera whose exposure can be "
+        "set",
     )
     p.add_argument(
         "--camera-size", default=None, help="camera resolution WIDTHxHEIGHT to ask the driver for"
