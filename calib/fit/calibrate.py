@@ -132,9 +132,7 @@ def calibrate(
     """
     say = log or (lambda _msg: None)
     geometry_stats = None
-    mono = is_mono_set([cs.white[n] for n in ("red", "green", "blue") if n in cs.white])
-    if mono and "red_alone" not in cs.white:
-        raise FitError("white/red", MONO_REFUSAL)
+    mono = _is_mono(cs)
     if cs.rig.capture.space != "projector":
         say("rectifying the camera's captures onto the projector grid (chessboard, Gray code)")
         from viewcomp.calib.geo.rectify import (
@@ -142,10 +140,7 @@ def calibrate(
         )
 
         cs, geometry_stats = rectify_capture_set(cs, check_order=not mono)
-    mono_info: dict[str, float] = {}
-    if mono:
-        say("a mono camera's set: the captures in the per-primary basis (docs/MODEL.md)")
-        cs, mono_info = _per_primary_set(cs)
+    cs, mono_info = _per_primary_set(cs, say) if mono else (cs, {})
     check_captures(cs)
     t0 = time.perf_counter()
     geometry = ScreenGeometry.from_rig(cs.rig)
@@ -184,17 +179,32 @@ def calibrate(
     info["seconds"] = round(time.perf_counter() - t0, 2)
     if geometry_stats is not None:
         info["geometry"] = geometry_stats
-    if mono_info:
-        info["mono"] = mono_info
+    info.update({"mono": mono_info} if mono else {})
     return Calibration(rig=cs.rig, paper=paper, pixel=pixel, info=info)
 
 
-def _per_primary_set(cs: CaptureSet) -> tuple[CaptureSet, dict[str, float]]:
+def _is_mono(cs: CaptureSet) -> bool:
+    """Whether ``cs`` is a mono camera's set (grey colour captures).
+
+    Raises:
+        FitError: a mono set without the primaries shown alone (:data:`MONO_REFUSAL`).
+    """
+    mono = is_mono_set([cs.white[n] for n in ("red", "green", "blue") if n in cs.white])
+    if mono and "red_alone" not in cs.white:
+        raise FitError("white/red", MONO_REFUSAL)
+    return mono
+
+
+def _per_primary_set(
+    cs: CaptureSet, say: Callable[[str], None]
+) -> tuple[CaptureSet, dict[str, float]]:
     """A mono camera's set (on the projector grid) with its Table 1 captures in the
     per-primary basis (:mod:`viewcomp.calib.fit.mono`), and each stage's additivity misfit."""
     from dataclasses import replace
 
     from viewcomp.calib.fit.mono import per_primary_images
+
+    say("a mono camera's set: the captures in the per-primary basis (docs/MODEL.md)")
 
     white, add_w = per_primary_images(cs.white, "white")
     screen, add_s = per_primary_images(cs.screen, "screen")

@@ -93,7 +93,8 @@ def _add_capture_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="camera exposure in seconds (with --simulate: 1 s is the simulator's unit "
         "exposure); with --hdr the bracket's base (relative exposure 1). Default: searched "
-        "with the white screen up, so that the brightest pattern's lit region reaches 80%% of full scale",
+        "with the white screen up, so that the brightest pattern's lit region reaches 80%% of "
+        "full scale",
     )
     p.add_argument(
         "--retries",
