@@ -29,6 +29,7 @@ from viewcomp.calib.geo.framematch import (
 )
 from viewcomp.calib.geo.graycode import GrayCode, lit_mask
 from viewcomp.calib.io.checks import MASK_LIMIT, SATURATION_LIMIT
+from viewcomp.calib.io.patterns import PRIMARY_PATTERNS
 
 REFERENCE = "gray"  # the reference of a set other than the real screen's
 TABLE1 = ("black", "gray", "red", "green", "blue", "ramp")  # refused by check_captures when clipped
@@ -146,11 +147,13 @@ class MoveCheck:
         :meth:`flush`.
 
         Raises:
-            FitError: a capture as dark as black (wrong order, projector off), or whose frame
+            FitError: a capture as dark as black (wrong order, projector off; not a primary
+                shown alone, which a screen of another colour may leave dark), or whose frame
                 has moved (the camera moved between captures) or cannot be matched.
         """
         level = float((img - self.black)[self.lit].mean()) / max(self.lit_level, 1e-9)
-        if level < 0.02:
+        # a primary shown alone may be as dark as black on a screen that barely reflects it
+        if level < 0.02 and name not in PRIMARY_PATTERNS:
             raise FitError(
                 caps.rel(name),
                 f"does not show the projected pattern (where the projector lights, it is "

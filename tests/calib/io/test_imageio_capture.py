@@ -202,7 +202,7 @@ def test_capture_set_round_trip(tmp_path: Path) -> None:
     assert (tmp_path / "set" / "rig.toml") in written
     cs = read_capture_set(tmp_path / "set")
     assert cs.rig == _rig()
-    assert set(cs.white) == set(cs.screen) == {*REQUIRED, *OPTIONAL}
+    assert set(cs.white) == set(cs.screen) == {*REQUIRED, "black"}  # no primaries alone here
     assert cs.has_black and cs.size == (W, H)
     resp = parse_response("srgb")
     for name in REQUIRED:
