@@ -12,7 +12,6 @@ import pytest
 
 from viewcomp.calib.io.atomic import atomic_open
 from viewcomp.calib.io.captureset import (
-    OPTIONAL,
     REQUIRED,
     find_capture,
     read_capture_set,
