@@ -199,7 +199,7 @@ def material_sweep(
     world: MaterialWorld,
     angles: Iterable[float] = MATERIAL_ANGLES,
     images: dict[str, np.ndarray] | None = None,
-    oracle_cache: dict[tuple[str, ...], np.ndarray] | None = None,
+    oracle_cache: dict[tuple[str | float, ...], np.ndarray] | None = None,
 ) -> list[dict[str, Any]]:
     """Mean CIEDE2000 per column for every image and angle (rows as in the sweep protocol),
     the adapted error (:func:`~viewcomp.calib.eval.adapted.adapted_delta_e`, ``ade``) with
@@ -324,7 +324,7 @@ def materials(
     angles = list(angles)
     out: list[dict[str, Any]] = []
     for path in material_files(folder):
-        oracle_cache: dict[tuple[str, ...], np.ndarray] = {}
+        oracle_cache: dict[tuple[str | float, ...], np.ndarray] = {}
         for capture in captures:
             world = material_world(path, capture, size, seed)
             h, w = world.sim.shape
