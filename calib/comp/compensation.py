@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from viewcomp.calib.comp.adaptive import AdaptedPrediction, choose_field
+from viewcomp.calib.comp.shots import FieldSmoother
 from viewcomp.calib.comp.tonemap import (
     DEFAULT_LAMBDA,
     ToneMap,
@@ -30,6 +32,7 @@ from viewcomp.calib.comp.tonemap import (
     choose_tone_map,
 )
 from viewcomp.calib.io.patterns import GRAY_LEVEL
+from viewcomp.calib.model.gamut import ToneField
 from viewcomp.calib.model.reference import (
     View,
     audience_solve,
@@ -45,6 +48,8 @@ if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
 
 THUMB_SIDE = 64
+#: How the tone map is chosen: the paper's Eq. 21/22, today's global rule, the adaptive field.
+TONES = ("paper", "global", "adaptive")
 #: Video frames between two whole-grid searches of the per-pixel method's tone map.
 FULL_SEARCH_FRAMES = 15
 _CACHE = 64
@@ -102,6 +107,7 @@ class FrameParams:
     beta: float
     tone: ToneMap
     gains: np.ndarray | None = None
+    field: ToneField | None = None  # the adaptive tone map (then alpha, beta are unused)
 
 
 class Compensation:
@@ -114,6 +120,11 @@ class Compensation:
         tau: time constant (s) of the tone map's smoothing over video frames; None: none.
         feedback: iterations of the paper's Eq. 25 feedback for a still (the paper: 3); for
             video frames (called with a time ``t``) one iteration per frame, carried over.
+        tone: how the tone map is chosen (:data:`TONES`): ``paper`` Eq. 21/22 (the paper
+            method's only choice), ``global`` one (alpha, beta) of the smallest predicted
+            error (the pixel method's default), ``adaptive`` the smooth field with the
+            hue-keeping soft clip (pixel method, one eye; :mod:`~viewcomp.calib.comp.adaptive`),
+            smoothed within a shot and reset at a cut (:class:`FieldSmoother`).
     """
 
     def __init__(
@@ -123,9 +134,17 @@ class Compensation:
         lam: float = DEFAULT_LAMBDA,
         tau: float | None = None,
         feedback: int = 3,
+        tone: str | None = None,
     ) -> None:
         if method not in ("pixel", "paper"):
             raise ValueError(f"method must be 'pixel' or 'paper', got {method!r}")
+        tone = tone or ("global" if method == "pixel" else "paper")
+        if tone not in TONES or (method == "paper" and tone != "paper"):
+            raise ValueError(
+                f"tone must be one of {TONES} (the paper's method: 'paper'), got {tone!r}"
+            )
+        self.tone = tone
+        self.fields = FieldSmoother(tau if tau else 0.0)
         cal.require(method)
         self.cal = cal
         self.method = method
@@ -198,6 +217,10 @@ class Compensation:
             u = cw @ model.Wc_inv.T.astype(np.float64)
             v = np.broadcast_to(model.Wc_inv.astype(np.float64) @ np.ones(3), u.shape)
             return choose_tone_map(u, v, 0.0, model.inv_lo, model.inv_hi, self.lam)
+        if self.tone == "paper" and not isinstance(eye, Audience):
+            m, m_inv, a = self._screen(small, eye)
+            u, v, c = tone_terms(m_inv, cw, a)
+            return choose_tone_map(u, v, c, 0.0, 1.0, self.lam)
         if isinstance(eye, Audience):
             mk, ak, p, d = self._audience(small, eye)
             u = np.einsum("...ij,...j->...i", p, cw)
@@ -271,9 +294,35 @@ class Compensation:
             if t is not None:
                 self._gains = gains
         alpha, beta = tone.alpha, tone.beta
+        if self.tone == "adaptive" and not isinstance(eye, Audience):
+            assert model is not None
+            return FrameParams(
+                model, alpha, beta, tone, gains, self._field(model, thumb, eye, tone, t)
+            )
         if self.smoother is not None and t is not None:
             alpha, beta = self.smoother.update(t, alpha, beta)
         return FrameParams(model, alpha, beta, tone, gains)
+
+    def _field(
+        self,
+        model: RuntimeModel,
+        thumb: np.ndarray,
+        eye: np.ndarray,
+        tone: ToneMap,
+        t: float | None,
+    ) -> ToneField:
+        """The adaptive field for a frame: a whole search for a still and at a cut, a local
+        one from the last frame's within a shot; smoothed over a shot's frames."""
+        small = self._small_model(model, thumb.shape[:2])
+        m, m_inv, a = self._screen(small, eye)
+        cw = white_response(small, thumb).astype(np.float64)
+        pred = AdaptedPrediction(*tone_terms(m_inv, cw, a), m, a, cw)
+        if t is None:
+            return choose_field(pred, (tone.alpha, tone.beta))
+        cut = self.fields.is_cut(thumb)
+        last = None if cut else self.fields.raw
+        field = choose_field(pred, (tone.alpha, tone.beta), last)
+        return self.fields.update(t, field, cut)
 
     def compensate_image(
         self, image: np.ndarray, eye: View, identity: bool = False
@@ -281,5 +330,5 @@ class Compensation:
         """The numpy reference end to end for one image already on the projector grid."""
         eye = as_view(eye)
         p = self(thumbnail(image), eye)
-        out = compensate(p.model, image, eye, p.alpha, p.beta, identity=identity)
+        out = compensate(p.model, image, eye, p.alpha, p.beta, identity=identity, field=p.field)
         return out, p

@@ -222,7 +222,7 @@ _RGB_TO_XYZN = np.array(
 ) / np.array([[0.95047], [1.0], [1.08883]])
 
 
-def _lab(rgb: np.ndarray) -> np.ndarray:
+def linear_lab(rgb: np.ndarray) -> np.ndarray:
     """CIELAB (..., 3) of linear RGB taken as linear sRGB (D65), 1 = white: the colour
     space the evaluation's CIEDE2000 measures in."""
     t = np.maximum(rgb, 0.0) @ _RGB_TO_XYZN.T
@@ -237,7 +237,7 @@ def _lab(rgb: np.ndarray) -> np.ndarray:
     )
 
 
-def _delta_e94(lab: np.ndarray, ref: np.ndarray) -> np.ndarray:
+def delta_e94(lab: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """CIE94 colour difference (graphic arts) of ``lab`` from ``ref``, per pixel: chroma and
     hue weighted down for saturated references, as CIEDE2000 does, at a fraction of its cost."""
     c_ref = np.hypot(ref[..., 1], ref[..., 2])
@@ -341,7 +341,7 @@ class _PredictedError:
         self.u, self.v, self.c, self.w = flat(u), flat(v), flat(c), flat(white)
         self.lo = np.broadcast_to(np.asarray(lo, np.float64), (3,))
         self.hi = np.broadcast_to(np.asarray(hi, np.float64), (3,))
-        self.goal = _lab(self.w)
+        self.goal = linear_lab(self.w)
         self.viewers = viewers
         if viewers is None:
             self.m = np.broadcast_to(np.asarray(m, np.float64), (*shape, 3)).reshape(-1, 3, 3)[::k]
@@ -358,12 +358,12 @@ class _PredictedError:
         short = np.clip(y, self.lo, self.hi) - y
         if self.viewers is None:  # M y + A = T exactly: what shows is T + M (clip(y) - y)
             shown = alpha * self.w + betas[:, None, None] + np.einsum("nij,knj->kni", self.m, short)
-            err = np.mean(_delta_e94(_lab(shown), self.goal), axis=1)
+            err = np.mean(delta_e94(linear_lab(shown), self.goal), axis=1)
         else:
             err = np.zeros(len(betas))
             for j in range(len(self.wk)):
                 seen = np.einsum("nij,knj->kni", self.mk[j], y + short) + self.ak[j]
-                err += self.wk[j] * np.mean(_delta_e94(_lab(seen), self.goal), axis=1)
+                err += self.wk[j] * np.mean(delta_e94(linear_lab(seen), self.goal), axis=1)
         return err, np.mean(short != 0.0, axis=(1, 2))
 
 

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.eval.adapted import adapted_delta_e
 from viewcomp.calib.eval.evaluate import SWEEP_SCREENS, Progress, World
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
@@ -79,13 +80,15 @@ def zone_rows(
                 }
                 angles = np.linspace(lo, hi, judge)
                 de: dict[str, list[float]] = {k: [] for k in ZONE_KEYS}
+                ade: dict[str, list[float]] = {k: [] for k in ZONE_KEYS}
                 for a in angles:
                     eye = world.eye(float(a))
                     t_i = world.sim.observe(white_screen(), image, eye)
+                    comps["oracle"] = world.oracle(case.screen, image, eye)
                     for k, img in comps.items():
-                        de[k].append(delta_e2000(world.sim.observe(case.screen, img, eye), t_i))
-                    best = world.oracle(case.screen, image, eye)
-                    de["oracle"].append(delta_e2000(world.sim.observe(case.screen, best, eye), t_i))
+                        seen = world.sim.observe(case.screen, img, eye)
+                        de[k].append(delta_e2000(seen, t_i))
+                        ade[k].append(adapted_delta_e(seen, t_i).de)
                 rows.append(
                     {
                         "screen": name,
@@ -95,6 +98,7 @@ def zone_rows(
                         "de": de,
                         "mean": {k: float(np.mean(x)) for k, x in de.items()},
                         "worst": {k: float(np.max(x)) for k, x in de.items()},
+                        "adapted_mean": {k: float(np.mean(x)) for k, x in ade.items()},
                     }
                 )
             if progress:
@@ -117,6 +121,10 @@ def zone_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         out[f"{key[0]:g}:{key[1]:g}"] = {
             "mean": mean,
             "worst": worst,
+            # The adapted dE (docs/EVALUATION.md): the mean over rows of each column's zone mean.
+            "adapted_mean": {
+                k: float(np.mean([r["adapted_mean"][k] for r in rs])) for k in ZONE_KEYS
+            },
             "rows": len(rs),
             "rows_audience_mean_lt_90": rows_where(
                 lambda r: r["mean"]["pixel_audience"] < r["mean"]["pixel_90"]

@@ -33,6 +33,8 @@ from viewcomp.calib.comp.tonemap import (
     ToneMap,
     choose_predicted_tone_map,
 )
+from viewcomp.calib.eval.adapted import adapted_delta_e
+from viewcomp.calib.eval.limit import physical_limit
 from viewcomp.calib.eval.metrics import delta_e2000, psnr, sse, ssim
 from viewcomp.calib.eval.testimages import natural_images, uniform
 from viewcomp.calib.fit.calibrate import Calibration, calibrate
@@ -152,6 +154,21 @@ class World:
             Compensation(cal, "pixel", self.lam),
         )
 
+    def limit(self, screen: Screen, ideal: np.ndarray, angle: float) -> float:
+        """The per-pixel physical limit of the adapted error
+        (:func:`~viewcomp.calib.eval.limit.physical_limit`) of ``screen`` seen at ``angle``,
+        on about 160 x 80 of its pixels."""
+        sim, eye = self.sim, self.eye(angle)
+        return physical_limit(
+            sim.true_mixing(screen, eye, vignetting=False),
+            sim.true_ambient(screen, vignetting=False),
+            sim.projector.response(np.zeros(3)),
+            sim.projector.response(np.full(3, 255.0)),
+            ideal,
+            sim.response,
+            step=max(2, round(self.shape[1] / 160)),
+        ).de
+
     def oracle(self, screen: Screen, image: np.ndarray, eye: np.ndarray) -> np.ndarray:
         """The physical limit: invert the true per-pixel model at ``eye`` exactly.
 
@@ -239,6 +256,7 @@ def table2(world: World, progress: Progress | None = None) -> list[dict[str, Any
                         "psnr": {k: psnr(views[k], t_i) for k in cols},
                         "ssim": {k: ssim(views[k], t_i) for k in cols},
                         "de": {k: delta_e2000(views[k], t_i) for k in cols},
+                        "ade": {k: adapted_delta_e(views[k], t_i).de for k in cols},
                         "tone": {
                             k: [round(t.alpha, 3), round(t.beta, 5)] for k, t in tones.items()
                         },
@@ -278,6 +296,8 @@ def sweep(
                         "image": iname,
                         "seen_at": a,
                         "de": {k: delta_e2000(views[k], t_i) for k in KEYS},
+                        "ade": {k: adapted_delta_e(views[k], t_i).de for k in KEYS},
+                        "limit": world.limit(case.screen, t_i, a),
                     }
                 )
                 if keep is not None and not keep.get("done"):
@@ -323,6 +343,17 @@ def sweep_means(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
     for a in sorted({r["seen_at"] for r in rows}):
         rs = [r for r in rows if r["seen_at"] == a]
         out[f"{a:g}"] = {k: float(np.mean([r["de"][k] for r in rs])) for k in KEYS}
+    return out
+
+
+def sweep_adapted_means(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """Mean adapted dE per column at each angle, and the per-pixel limit's (``limit``)."""
+    out: dict[str, dict[str, float]] = {}
+    for a in sorted({r["seen_at"] for r in rows}):
+        rs = [r for r in rows if r["seen_at"] == a]
+        out[f"{a:g}"] = {k: float(np.mean([r["ade"][k] for r in rs])) for k in KEYS} | {
+            "limit": float(np.mean([r["limit"] for r in rs]))
+        }
     return out
 
 

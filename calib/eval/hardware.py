@@ -35,6 +35,7 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.calib.emu.emulator import Emulator, open_emulator
 from viewcomp.calib.errors import FitError
+from viewcomp.calib.eval.adapted import adapted_delta_e
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
 from viewcomp.calib.fit.calibrate import Calibration, calibrate
@@ -126,16 +127,15 @@ def seen_errors(
     out: dict[str, dict[str, float]] = {}
     for a in angles:
         eye = cal.eye(float(a))
-        de: dict[str, list[float]] = {"compensated": [], "original": []}
+        de: dict[str, list[float]] = {k: [] for k in ("compensated", "original")}
+        de |= {f"{k}_adapted": [] for k in ("compensated", "original")}
         for image in images.values():
             ideal = _encode(truth.observe_linear("white", image, eye))
             shown, _ = comp.compensate_image(image, eye)
-            de["compensated"].append(
-                delta_e2000(_encode(truth.observe_linear("screen", shown, eye)), ideal)
-            )
-            de["original"].append(
-                delta_e2000(_encode(truth.observe_linear("screen", image, eye)), ideal)
-            )
+            for k, img in (("compensated", shown), ("original", image)):
+                seen = _encode(truth.observe_linear("screen", img, eye))
+                de[k].append(delta_e2000(seen, ideal))
+                de[f"{k}_adapted"].append(adapted_delta_e(seen, ideal).de)
         out[f"{a:g}"] = {k: float(np.mean(v_)) for k, v_ in de.items()}
     return out
 

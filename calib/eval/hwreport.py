@@ -12,7 +12,9 @@ from viewcomp.calib.eval.report import write_report_files
 def _cell(row: dict[str, Any], angle: str) -> str:
     e = row["emulated"][angle]["compensated"]
     i = row["ideal"][angle]["compensated"]
-    return f"{e:.2f} / {i:.2f} ({e / i:.3f})"
+    ea = row["emulated"][angle].get("compensated_adapted")
+    adapted = f", adapted {ea:.2f}" if ea is not None else ""
+    return f"{e:.2f} / {i:.2f} ({e / i:.3f}{adapted})"
 
 
 def write_hardware_report(out: Path, report: dict[str, Any]) -> None:

@@ -32,6 +32,8 @@ import numpy as np
 from viewcomp.calib.comp.compensation import Compensation, sample_grid, thumbnail
 from viewcomp.calib.comp.tonemap import choose_predicted_tone_map
 from viewcomp.calib.errors import FitError
+from viewcomp.calib.eval.adapted import adapted_delta_e
+from viewcomp.calib.eval.limit import physical_limit
 from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
 from viewcomp.calib.fit.calibrate import Calibration, calibrate
@@ -197,9 +199,11 @@ def material_sweep(
     world: MaterialWorld,
     angles: Iterable[float] = MATERIAL_ANGLES,
     images: dict[str, np.ndarray] | None = None,
-    oracle_cache: dict[tuple[str, str, float], np.ndarray] | None = None,
+    oracle_cache: dict[tuple[str | float, ...], np.ndarray] | None = None,
 ) -> list[dict[str, Any]]:
-    """Mean CIEDE2000 per column for every image and angle (rows as in the sweep protocol).
+    """Mean CIEDE2000 per column for every image and angle (rows as in the sweep protocol),
+    the adapted error (:func:`~viewcomp.calib.eval.adapted.adapted_delta_e`, ``ade``) with
+    its scales, and the per-pixel physical limit (:func:`true_limit`, ``limit``).
 
     ``oracle_cache`` shares the oracle's images between the captures of one material (the
     oracle does not depend on the calibration).
@@ -231,25 +235,70 @@ def material_sweep(
                 shown["oracle"], _ = oracle_true_error(sim, screen, image, eye, ideal)
                 if oracle_cache is not None:
                     oracle_cache[key] = shown["oracle"]
-            de = {k: delta_e2000(sim.observe(screen, img, eye), ideal) for k, img in shown.items()}
-            rows.append({"image": iname, "seen_at": float(a), "de": de})
+            seen = {k: sim.observe(screen, img, eye) for k, img in shown.items()}
+            adapted = {k: adapted_delta_e(v, ideal) for k, v in seen.items()}
+            key_l = ("limit", *key)
+            if oracle_cache is not None and key_l in oracle_cache:
+                limit = oracle_cache[key_l]
+            else:
+                limit = np.array(true_limit(sim, screen, eye, ideal))
+                if oracle_cache is not None:
+                    oracle_cache[key_l] = limit
+            rows.append(
+                {
+                    "image": iname,
+                    "seen_at": float(a),
+                    "de": {k: delta_e2000(v, ideal) for k, v in seen.items()},
+                    "ade": {k: v.de for k, v in adapted.items()},
+                    "ade_scale": {k: v.scale for k, v in adapted.items()},
+                    "limit": {"ade": float(limit[0]), "scale": float(limit[1])},
+                }
+            )
     return rows
 
 
+def true_limit(
+    sim: Simulator, screen: MaterialScreen, eye: np.ndarray, ideal: np.ndarray
+) -> tuple[float, float]:
+    """The per-pixel physical limit (:func:`~viewcomp.calib.eval.limit.physical_limit`) of
+    the simulator's true model at ``eye``: (adapted dE, its scale)."""
+    proj = sim.projector
+    lim = physical_limit(
+        sim.true_mixing(screen, eye, vignetting=False),
+        sim.true_ambient(screen, vignetting=False),
+        proj.response(np.zeros(3)),
+        proj.response(np.full(3, 255.0)),
+        ideal,
+        sim.response,
+    )
+    return lim.de, lim.scale
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per angle the mean dE of each column over the images; over the angles off 90: whether
-    pixel_theta beats pixel_90 at each, and the share of the gap to the oracle it closes."""
+    """Per angle the mean dE of each column over the images (``mean_de``) and the mean adapted
+    dE with the per-pixel limit (``mean_ade``, None for rows without them); over the angles
+    off 90: whether pixel_theta beats pixel_90 at each, and the share of the gap to the
+    oracle it closes."""
     angles = sorted({r["seen_at"] for r in rows})
     cols = sorted({k for r in rows for k in r["de"]})
     means = {
         f"{a:g}": {k: float(np.mean([r["de"][k] for r in rows if r["seen_at"] == a])) for k in cols}
         for a in angles
     }
+    if all("ade" in r for r in rows):
+        mean_ade = {
+            f"{a:g}": {
+                k: float(np.mean([r["ade"][k] for r in rows if r["seen_at"] == a])) for k in cols
+            }
+            | {"limit": float(np.mean([r["limit"]["ade"] for r in rows if r["seen_at"] == a]))}
+            for a in angles
+        }
     off = [m for a, m in means.items() if float(a) != 90.0]
     gap = sum(m["pixel_90"] - m["oracle"] for m in off)
     won = sum(m["pixel_90"] - m["pixel_theta"] for m in off)
     return {
         "mean_de": means,
+        "mean_ade": mean_ade if all("ade" in r for r in rows) else None,
         "theta_beats_90": {
             a: m["pixel_theta"] < m["pixel_90"] for a, m in means.items() if float(a) != 90.0
         },
@@ -275,7 +324,7 @@ def materials(
     angles = list(angles)
     out: list[dict[str, Any]] = []
     for path in material_files(folder):
-        oracle_cache: dict[tuple[str, str, float], np.ndarray] = {}
+        oracle_cache: dict[tuple[str | float, ...], np.ndarray] = {}
         for capture in captures:
             world = material_world(path, capture, size, seed)
             h, w = world.sim.shape

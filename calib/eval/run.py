@@ -18,6 +18,7 @@ from viewcomp.calib.eval.evaluate import (
     check_table2,
     gap_closed,
     sweep,
+    sweep_adapted_means,
     sweep_means,
     table2,
 )
@@ -207,6 +208,7 @@ def run(
         report["sweep"] = rows
         means = sweep_means(rows)
         report["sweep_mean_de"] = means
+        report["sweep_mean_adapted_de"] = sweep_adapted_means(rows)
         report["sweep_checks"] = check_sweep(means)
         report["sweep_gap_closed_de"] = gap_closed(rows, "de")
     return _finish(out_dir, report, t0, lambda out, rep: write_report(out, rep, world, keep))

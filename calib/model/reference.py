@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewcomp.calib.model.gamut import LUMA, ToneField, field_at, grey_range, soft_light
 from viewcomp.calib.model.lobe import lobe_lookup, lobe_position
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
@@ -214,6 +215,7 @@ def compensate(
     alpha: float,
     beta: float,
     identity: bool = False,
+    field: ToneField | None = None,
 ) -> np.ndarray:
     """The per-pixel formula of docs/RUNTIME.md on the CPU.
 
@@ -224,6 +226,8 @@ def compensate(
             :class:`Audience` (pixel method; :func:`target_to_projector`).
         alpha, beta: tone map C_c = alpha C_w + beta (Eq. 21), linear camera units.
         identity: pass the frame through unchanged (same quantisation path).
+        field: the adaptive tone map (pixel method, one eye; :mod:`~viewcomp.calib.model.gamut`)
+            in place of (alpha, beta), which are then unused.
 
     Returns:
         (H, W, 3) uint8, the image to project.
@@ -232,6 +236,10 @@ def compensate(
         raise ValueError(f"frame must be {(*model.shape, 3)}, got {frame.shape}")
     if identity:
         out = frame.astype(np.float32) / np.float32(255.0)
+    elif field is not None:
+        out = lut_inverse(
+            model.inv_lut, model.inv_lo, model.inv_hi, adaptive_light(model, frame, eye, field)
+        )
     else:
         cw = white_response(model, frame)
         t = np.float32(alpha) * cw + np.float32(beta)
@@ -240,3 +248,19 @@ def compensate(
             y = np.clip(y, 0.0, 1.0)
         out = lut_inverse(model.inv_lut, model.inv_lo, model.inv_hi, y)
     return np.rint(np.clip(out, 0.0, 1.0) * np.float32(255.0)).astype(np.uint8)
+
+
+def adaptive_light(
+    model: RuntimeModel, frame: np.ndarray, eye: View, field: ToneField
+) -> np.ndarray:
+    """The adaptive tone map's projector light (H, W, 3) float32 in [0, 1] for an 8-bit
+    frame at the model's grid (pixel method, one eye): the field's gain and offset at each
+    pixel, the hue-keeping soft clip into the pixel's reach (:func:`soft_light`)."""
+    if model.method != "pixel" or isinstance(eye, Audience):
+        raise ValueError("the adaptive tone map needs the pixel method and one eye")
+    cw = white_response(model, frame)
+    m, a = screen_at(model, eye)
+    u, v, c = tone_terms(np.linalg.inv(m).astype(np.float32), cw, a)
+    lo, hi = grey_range(v, c)
+    g, o = field_at(field, model.shape)
+    return soft_light(u, v, c, (cw @ LUMA).astype(np.float32), g, o, lo, hi)

@@ -52,6 +52,7 @@ from tqdm import tqdm
 from viewcomp.calib.comp.compensation import THUMB_SIDE, thumbnail
 from viewcomp.calib.errors import ImageError
 from viewcomp.calib.io.imageio import read_rgb8
+from viewcomp.calib.model.gamut import ToneField
 from viewcomp.calib.model.reference import View, compensate
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.world.audience import Audience
@@ -143,6 +144,7 @@ class _Engine:
         self.next_model = model  # what the next submit uses
         self.ctx = ctx
         self.alpha, self.beta = 1.0, 0.0
+        self.field: ToneField | None = None
         self.eye: View = np.asarray(model.cam_eye, np.float32)
         self.gl: Any = None
         self._result: np.ndarray | None = None
@@ -171,6 +173,7 @@ class _Engine:
                 )
             self.next_model = model
             self.alpha, self.beta = float(p.alpha), float(p.beta)
+            self.field = getattr(p, "field", None)  # the adaptive tone map (numpy only)
         self.eye = _view(eye)
 
     def submit(self, frame: np.ndarray | Planes) -> None:
@@ -179,7 +182,9 @@ class _Engine:
         if self.gl is None:
             rgb = yuv420p_to_rgb(frame) if isinstance(frame, Planes) else frame
             self.model = model
-            self._result = compensate(model, rgb, self.eye, self.alpha, self.beta, self.identity)
+            self._result = compensate(
+                model, rgb, self.eye, self.alpha, self.beta, self.identity, field=self.field
+            )
             return
         if model is not self.model:  # after the previous frame was read: no stall
             if model.method == "paper":

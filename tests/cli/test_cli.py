@@ -187,3 +187,24 @@ def test_values_that_begin_with_a_minus(calib, tmp_path, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "-5x10" in err and "expected one argument" not in err
+
+
+def test_render_tone_choices(calib, tmp_path, capsys):
+    src = tmp_path / "in.png"
+    img = np.random.default_rng(1).integers(0, 256, (48, 96, 3), dtype=np.uint8)
+    write_png(src, img)
+    bundle = str(calib / "red.vcb")
+    outs = {}
+    for tone in ("paper", "global", "adaptive"):
+        out = tmp_path / f"{tone}.png"
+        assert main(["render", bundle, str(src), "-o", str(out), "--angle", "60", "--backend",
+                     "cpu", "--tone", tone, "--quiet"]) == 0  # fmt: skip
+        outs[tone] = read_image(out).astype(int)
+    assert np.abs(outs["adaptive"] - outs["global"]).mean() > 1  # a different tone map
+    assert np.abs(outs["paper"] - outs["global"]).mean() > 0
+    bad = tmp_path / "bad.png"
+    with pytest.raises(SystemExit) as exc:  # a usage error exits as argparse does
+        main(["render", bundle, str(src), "-o", str(bad), "--angle", "60", "--tone", "adaptive",
+              "--quiet"])  # fmt: skip
+    assert exc.value.code == 2
+    assert "--backend cpu" in capsys.readouterr().err and not bad.exists()

@@ -33,6 +33,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_eye_arguments(p, required=True, track=True, audience=True)
     add_tone_arguments(p)
     p.add_argument(
+        "--tone",
+        choices=["paper", "global", "adaptive"],
+        default=None,
+        help="how the tone map is chosen: paper (Eq. 21/22), global (one alpha, beta of the "
+        "smallest predicted error: the pixel method's default) or adaptive (a smooth gain and "
+        "offset field with a hue-keeping soft clip into each pixel's reach; pixel method, one "
+        "eye, --backend cpu)",
+    )
+    p.add_argument(
         "--backend",
         choices=["gl", "cpu"],
         default="gl",
@@ -92,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         track = constant_eye(*eye)
     lam = DEFAULT_LAMBDA if args.lam is None else args.lam
     tau = None if is_image(Path(args.input)) else args.smooth
-    comp = Compensation(cal, args.method, lam, tau=tau)
+    comp = Compensation(cal, args.method, lam, tau=tau, tone=args.tone)
     kwargs = {"preset": args.preset} if args.preset else {}
     stats = render_file(
         comp,
@@ -127,6 +136,7 @@ def _check_args(args: argparse.Namespace) -> None:
     """Before any work: the input usable, the eye within the limits, the output never an
     input, its extension, codec and profile working together (the grid's size is checked
     once the calibration is loaded, still before the input is decoded)."""
+    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.io.paths import check_input_file
     from viewcomp.calib.world.eye import check_angle, check_eye
     from viewcomp.commands._common import check_output_file, check_output_folder
@@ -134,6 +144,12 @@ def _check_args(args: argparse.Namespace) -> None:
     from viewcomp.rt.render.pipeline import is_image
 
     check_input_file(args.input, "input", "an image or a video file")
+    if args.tone == "adaptive" and args.backend != "cpu":
+        raise UsageError("--tone adaptive runs on --backend cpu only (not yet in the shader)")
+    if args.tone == "adaptive" and args.method != "pixel":
+        raise UsageError("--tone adaptive needs --method pixel")
+    if args.tone in ("global", "adaptive") and args.method == "paper":
+        raise UsageError(f"--tone {args.tone} needs --method pixel (the paper's: --tone paper)")
     if args.angle is not None:
         check_angle(args.angle, "--angle")
     if args.eye:

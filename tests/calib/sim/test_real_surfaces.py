@@ -76,7 +76,9 @@ def test_predicted_tone_map_never_predicts_worse_than_eq22s_choice():
     def predicted(alpha: float, beta: float) -> float:
         y = alpha * u + beta * v + c
         shown = alpha * white + beta + np.einsum("nij,nj->ni", m, np.clip(y, 0, 1) - y)
-        return float(np.mean(tonemap._delta_e94(tonemap._lab(shown), tonemap._lab(white))))
+        return float(
+            np.mean(tonemap.delta_e94(tonemap.linear_lab(shown), tonemap.linear_lab(white)))
+        )
 
     assert predicted(ours.alpha, ours.beta) == pytest.approx(ours.cost, rel=1e-9)
     assert predicted(ours.alpha, ours.beta) < predicted(eq22.alpha, eq22.beta) - 0.2

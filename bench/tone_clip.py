@@ -1,0 +1,117 @@
+"""Flicker of the tone maps in video: a 20-second clip with cuts, compensated frame by frame
+as `render` does (numpy reference), what the eye sees of it measured frame by frame
+(docs/EVALUATION.md "Adaptive tone map").
+
+    .venv/bin/python bench/tone_clip.py [--size 128x64] [--fps 24] [--screen red]
+
+The clip: four shots of 5 s (astronaut, coffee, chelsea, astronaut), each a slow pan across a
+larger copy of the image. Per tone map (today's global rule and the adaptive field, both
+smoothed with tau = 0.5 s as `render` smooths): the mean and largest change of the seen
+image's mean luminance between consecutive frames inside a shot, the same for the ratio of
+the seen image's mean luminance to the ideal's (the tone map's own part of it, the content's
+own change taken out), and per cut the time after which that ratio changes by less than
+0.5 % per frame for the rest of the shot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from viewcomp.calib.comp.compensation import Compensation, thumbnail
+from viewcomp.calib.eval.adapted import SRGB
+from viewcomp.calib.eval.testimages import natural_images
+from viewcomp.calib.fit.calibrate import calibrate
+from viewcomp.calib.io.captureset import capture_set_from_raw
+from viewcomp.calib.model.gamut import LUMA
+from viewcomp.calib.model.reference import compensate
+from viewcomp.calib.sim.simulate import capture_patterns
+from viewcomp.calib.sim.simulator import Simulator, make_screen, simulation_rig, white_screen
+
+SHOTS = ("astronaut", "coffee", "chelsea", "astronaut")
+SHOT_S = 5.0
+STEADY = 0.005
+
+
+def clip(w: int, h: int, fps: int) -> tuple[list[np.ndarray], list[int]]:
+    """The frames and the index of each shot's first frame."""
+    big = natural_images(2 * w, 2 * h)
+    n = int(SHOT_S * fps)
+    frames, starts = [], []
+    for k, name in enumerate(SHOTS):
+        starts.append(len(frames))
+        src = cv2.resize(big[name], (int(1.5 * w), int(1.5 * h)), interpolation=cv2.INTER_AREA)
+        for i in range(n):
+            x = round((src.shape[1] - w) * i / (n - 1)) if k % 2 == 0 else 0
+            y = 0 if k % 2 == 0 else round((src.shape[0] - h) * i / (n - 1))
+            frames.append(np.ascontiguousarray(src[y : y + h, x : x + w]))
+    return frames, starts
+
+
+def luminance(img: np.ndarray) -> float:
+    """Mean luminance of an 8-bit sRGB image, linear light."""
+    return float(np.mean(SRGB.decode(img / 255.0) @ LUMA))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--size", default="128x64")
+    ap.add_argument("--fps", type=int, default=24)
+    ap.add_argument("--screen", default="red")
+    ap.add_argument("--angle", type=float, default=60.0)
+    args = ap.parse_args()
+    w, h = (int(v) for v in args.size.split("x"))
+    rig = simulation_rig()
+    rig = replace(rig, projector=replace(rig.projector, resolution=(w, h), principal_point=None))
+    sim = Simulator(rig=rig, seed=0)
+    screen = make_screen(args.screen, "glossy", shape=sim.shape, seed=0)
+    cal = calibrate(
+        capture_set_from_raw(
+            rig, capture_patterns(sim, white_screen()), capture_patterns(sim, screen)
+        )
+    )
+    frames, starts = clip(w, h, args.fps)
+    eye = rig.viewer.eye(args.angle)
+    ideal = np.array([luminance(sim.observe(white_screen(), f, eye)) for f in frames])
+    first = set(starts)
+    print(
+        f"{len(frames)} frames ({len(frames) / args.fps:g} s, {args.fps} fps), cuts at "
+        f"{[s / args.fps for s in starts[1:]]} s; {args.screen} glossy screen at {args.angle:g} deg"
+    )
+    for tone in ("global", "adaptive"):
+        comp = Compensation(cal, "pixel", tau=0.5, tone=tone)
+        t0 = time.perf_counter()
+        seen = []
+        for i, f in enumerate(frames):
+            p = comp(thumbnail(f), eye, i / args.fps)
+            out = compensate(p.model, f, eye, p.alpha, p.beta, field=p.field)
+            seen.append(luminance(sim.observe(screen, out, eye)))
+        sec = time.perf_counter() - t0
+        lum = np.array(seen)
+        ratio = lum / ideal
+        inside = np.array([i for i in range(1, len(frames)) if i not in first])
+        d_lum = np.abs(lum[inside] / lum[inside - 1] - 1.0)
+        d_ratio = np.abs(ratio[inside] / ratio[inside - 1] - 1.0)
+        settle = []
+        for k, s in enumerate(starts[1:], 1):
+            end = starts[k + 1] if k + 1 < len(starts) else len(frames)
+            steps = np.abs(ratio[s + 1 : end] / ratio[s : end - 1] - 1.0)
+            moving = np.nonzero(steps >= STEADY)[0]
+            settle.append(0.0 if moving.size == 0 else (moving[-1] + 1) / args.fps)
+        print(
+            f"{tone}: seen mean-luminance change inside shots mean {100 * d_lum.mean():.3f} % "
+            f"max {100 * d_lum.max():.3f} %; ideal's own mean "
+            f"{100 * np.mean(np.abs(ideal[inside] / ideal[inside - 1] - 1)):.3f} %; "
+            f"seen/ideal ratio change mean {100 * d_ratio.mean():.3f} % max "
+            f"{100 * d_ratio.max():.3f} %; settled after each cut (s): {settle}; "
+            f"{sec / len(frames) * 1000:.0f} ms per frame (numpy reference)",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,50 @@
+"""The tone choices of Compensation: paper, global and adaptive on a real small calibration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.support.calibrations import small_calibration, small_simulator
+from viewcomp.calib.comp.compensation import Compensation
+from viewcomp.calib.eval.adapted import adapted_delta_e
+from viewcomp.calib.eval.testimages import natural_images
+from viewcomp.calib.sim.simulator import make_screen, white_screen
+
+
+def test_unknown_tone_is_refused() -> None:
+    with pytest.raises(ValueError, match="tone must be one of"):
+        Compensation(small_calibration(), "pixel", tone="local")
+    with pytest.raises(ValueError, match="tone must be one of"):
+        Compensation(small_calibration(), "paper", tone="adaptive")
+
+
+def test_adaptive_beats_global_in_adapted_error_on_a_coloured_screen() -> None:
+    cal = small_calibration(screen="red")
+    sim = small_simulator()
+    screen = make_screen("red", "glossy", shape=sim.shape, seed=0)
+    image = natural_images(64, 32)["coffee"]
+    eye = sim.rig.viewer.eye(60.0)
+    ideal = sim.observe(white_screen(), image, eye)
+    errs = {}
+    for tone in ("global", "adaptive"):
+        out, p = Compensation(cal, "pixel", tone=tone).compensate_image(image, eye)
+        assert (p.field is not None) == (tone == "adaptive")
+        errs[tone] = adapted_delta_e(sim.observe(screen, out, eye), ideal).de
+    assert errs["adaptive"] < errs["global"]
+
+
+def test_video_field_is_smoothed_and_reset_at_a_cut() -> None:
+    cal = small_calibration(screen="red")
+    comp = Compensation(cal, "pixel", tau=0.5, tone="adaptive")
+    imgs = natural_images(64, 32)
+    eye = small_simulator().rig.viewer.eye(90.0)
+    from viewcomp.calib.comp.compensation import thumbnail
+
+    first = comp(thumbnail(imgs["coffee"]), eye, 0.0).field
+    again = comp(thumbnail(imgs["coffee"]), eye, 1 / 24).field
+    cut = comp(thumbnail(imgs["astronaut"]), eye, 2 / 24).field
+    assert first is not None and again is not None and cut is not None
+    # A still shot: the local search from the same field moves it little, smoothed less.
+    assert np.max(np.abs(np.log(again.gain / first.gain))) < 0.1
+    assert comp.fields.raw is cut  # the cut's own field, unsmoothed
