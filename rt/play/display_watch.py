@@ -58,6 +58,7 @@ class DisplayWatch:
     _last_planes: Planes | None
     _drawn_key: tuple[Any, ...] | None
     _shown: _Shown | None
+    _pending_inputs: list[float]
 
     def _init_display_watch(self) -> None:
         self._display_name = None
@@ -129,5 +130,6 @@ class DisplayWatch:
         x, y, z = (float(v) for v in self.renderer.eye)
         self._last_planes = planes
         self._drawn_key = None  # drawn afresh once the display is back
+        self._pending_inputs.clear()  # applied, never shown: no latency to measure
         now = time.monotonic()
         self._shown = _Shown(idx, path, planes.time, self._still, now, (x, y, z), self._blackout)
