@@ -4,7 +4,7 @@ One ``viewcomp play`` process, fullscreen on a private Xvfb, plays a looping pla
 (two clips and two stills) through a simulated calibration while it is pushed as a kiosk is:
 
 - an OSC flood (``/viewcomp/angle`` at ``--osc-rate`` datagrams/s from another thread),
-- stdin commands every half second (angles, eyes, overlay, a status request),
+- stdin commands every half second (angles, eyes, normalised angles, a status request),
 - a face tracker feeding eyes (``--track-camera``: a walk of a face in front of the screen,
   rendered by :mod:`viewcomp.rt.track.simwalk`, as long as the soak, paced at 10 frames/s),
 - at 25 % of the run one playlist file deleted, at 40 % another replaced (renamed over) by a
@@ -38,6 +38,7 @@ import itertools
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import socket
@@ -134,10 +135,10 @@ def _osc_flood(port: int, rate: float, stop: threading.Event, sent: list[int]) -
 
 def _stdin_commands(pipe: IO[str], stop: threading.Event, sent: list[int]) -> None:
     rnd = random.Random(2)
-    lines = ["angle {a:.1f}", "eye {x:.3f} 0.1 {z:.3f}", "overlay", "status"]
+    lines = ["angle {a:.1f}", "eye {x:.3f} 0.1 {z:.3f}", "norm {n:.2f}", "status"]
     while not stop.wait(0.5):
         text = rnd.choice(lines).format(
-            a=rnd.uniform(40, 140), x=rnd.uniform(-1, 1), z=rnd.uniform(1, 3)
+            a=rnd.uniform(40, 140), x=rnd.uniform(-1, 1), z=rnd.uniform(1, 3), n=rnd.random()
         )
         try:
             pipe.write(text + "\n")
@@ -329,6 +330,11 @@ def _verdict(run: dict[str, Any], settle: float) -> list[tuple[str, bool, str]]:
     }
     for what, n in said.items():
         checks.append((what, n == 1, f"{n} log line{'s' if n != 1 else ''}"))
+    summary = " ".join(run["summary"])
+    for source in ("osc", "stdin", "track"):
+        found = re.search(rf"; {source}: (\d+) applied", summary)
+        n = int(found.group(1)) if found else 0
+        checks.append((f"{source} input applied", n > 0, f"{n} commands"))
     tracebacks = sum("Traceback" in m for m in log)
     checks.append(("no traceback in the log", tracebacks == 0, f"{tracebacks}"))
     return checks

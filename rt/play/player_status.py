@@ -86,10 +86,14 @@ class PlayerStats:
                 f"display lost {self.display_losses} time{'s' if self.display_losses > 1 else ''}"
                 f" ({self.unshown} frames due meanwhile not shown)"
             )
+        inputs = "".join(
+            f"; {source}: {c.applied} applied" + (f", {c.rejected} rejected" if c.rejected else "")
+            for source, c in sorted(self.inputs.items())
+        )
         return (
             f"{', '.join(parts)}, render {float(r.mean()):.1f} ms mean / "
             f"{float(np.percentile(r, 95)):.1f} ms p95, longest gap "
-            f"{self.max_present_gap_ms:.0f} ms; {audio}"
+            f"{self.max_present_gap_ms:.0f} ms; {audio}{inputs}"
         )
 
 
