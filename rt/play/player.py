@@ -48,6 +48,7 @@ import numpy as np
 from viewcomp.calib.errors import PlayerError
 from viewcomp.rt.media.frames import Planes
 from viewcomp.rt.media.video import VideoError, VideoReader
+from viewcomp.rt.play.display_watch import DisplayWatch
 from viewcomp.rt.play.live import InputHub
 from viewcomp.rt.play.overlay import Overlay
 from viewcomp.rt.play.player_options import PlayerOptions
@@ -89,7 +90,7 @@ log = logging.getLogger(__name__)
 REDRAW_GAP = 1.0 / 30.0  # seconds: between redraws of a held picture for a moving eye
 
 
-class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
+class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle, DisplayWatch):
     """Plays a playlist through the compensation in a glfw window with live eye input.
 
     Args:
@@ -129,6 +130,7 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
         self._init_show_control()
         self._init_status()
         self._init_window()
+        self._init_display_watch()
         # the schedule (main thread): the frame waiting to be shown and the file it is from
         self._failure: BaseException | None = None
         self._notify = Notifier()  # systemd's readiness and watchdog; a no-op outside it
@@ -237,7 +239,7 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
     def _redraw(self, now: float) -> bool:
         """Draw the frame on screen again when the eye, blackout or A/B state changed since
         (a held picture: paused, a still, a decoder behind); True if it drew."""
-        if self._last_planes is None or self._shown is None:
+        if self._last_planes is None or self._shown is None or self._display_lost:
             return False
         key = self._state_key(now)
         if key == self._drawn_key:
@@ -257,6 +259,7 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
         last_iter = time.monotonic()
         while not self._stop.is_set():
             glfw.poll_events()
+            self._reattach_display()
             now = time.monotonic()
             if self.stats.presented > 1:  # once playing: start-up (shader compile) excluded
                 gap = 1e3 * (now - last_iter)
@@ -312,6 +315,9 @@ class Player(PlaylistPump, ShowControl, StatusReport, WindowLifecycle):
             self._next = None
 
     def _present(self, planes: Planes, due: float, redraw: bool = False) -> None:
+        if self._display_lost:
+            self._unshown(planes, redraw)
+            return
         glfw = self._glfw.glfw  # type: ignore[union-attr]
         renderer = self.renderer
         assert renderer is not None and self._overlay is not None

@@ -46,6 +46,8 @@ class PlayerStats:
     audio_device: str = ""
     files_played: int = 0
     stills: int = 0  # still images shown (not counted in presented)
+    unshown: int = 0  # frames that came due while the display was gone (not drawn)
+    display_losses: int = 0  # times the fullscreen window's monitor went away
 
     @property
     def fps(self) -> float:
@@ -79,10 +81,19 @@ class PlayerStats:
             )
         if self.stills:
             parts.append(f"{self.stills} still image{'s' if self.stills != 1 else ''} shown")
+        if self.display_losses:
+            parts.append(
+                f"display lost {self.display_losses} time{'s' if self.display_losses > 1 else ''}"
+                f" ({self.unshown} frames due meanwhile not shown)"
+            )
+        inputs = "".join(
+            f"; {source}: {c.applied} applied" + (f", {c.rejected} rejected" if c.rejected else "")
+            for source, c in sorted(self.inputs.items())
+        )
         return (
             f"{', '.join(parts)}, render {float(r.mean()):.1f} ms mean / "
             f"{float(np.percentile(r, 95)):.1f} ms p95, longest gap "
-            f"{self.max_present_gap_ms:.0f} ms; {audio}"
+            f"{self.max_present_gap_ms:.0f} ms; {audio}{inputs}"
         )
 
 

@@ -144,7 +144,8 @@ class PlaylistPump:
         return jump
 
     def _refresh_playlist(self) -> None:
-        """Re-read the folders of the playlist: files added since are played too."""
+        """Re-read the folders of the playlist: files added since are played too, files removed
+        are left out (each change said once, when it is seen)."""
         if not any(Path(p).is_dir() for p in self._sources):
             return
         try:
@@ -152,13 +153,11 @@ class PlaylistPump:
         except PlayerError:  # a folder emptied or gone: play on with what was there
             return
         added = [p.name for p in new if p not in self.playlist]
-        if added:
-            log.info(
-                "playlist: %d new file%s: %s",
-                len(added),
-                "s" if len(added) > 1 else "",
-                ", ".join(added[:5]) + (" ..." if len(added) > 5 else ""),
-            )
+        gone = [p.name for p in self.playlist if p not in new]
+        for names, form in ((added, "%d new file%s: %s"), (gone, "%d file%s gone: %s")):
+            if names:
+                listed = ", ".join(names[:5]) + (" ..." if len(names) > 5 else "")
+                log.info("playlist: " + form, len(names), "s" if len(names) > 1 else "", listed)
         self.playlist = new
 
     def _pump(self) -> None:

@@ -145,7 +145,13 @@ class ShowControl:
             else:
                 self.renderer.apply(item.command)
             self.hub.applied(item)
-            self._pending_inputs.append(item.at)
+            # the first and the last input since the last present (two floats, however many
+            # inputs arrive while nothing is presented: a paused still, a display gone)
+            pending = self._pending_inputs
+            if pending:
+                pending[0], pending[1] = min(pending[0], item.at), max(pending[1], item.at)
+            else:
+                pending.extend((item.at, item.at))
 
     # ------------------------------------------------------------------ show control
     def _request_jump(self, index: int, seconds: float) -> None:

@@ -81,6 +81,10 @@ class WindowLifecycle:
 
         def _on_cursor(self, win: Any, x: float, y: float) -> None: ...
 
+        def _watch_display(self, monitor: Any) -> None: ...
+
+        def _unwatch_display(self) -> None: ...
+
     def _init_window(self) -> None:
         self.osc_address = None
         self._glfw = None
@@ -160,6 +164,7 @@ class WindowLifecycle:
         glfw.swap_interval(1 if o.vsync else 0)
         if monitor is not None:
             glfw.set_input_mode(win, glfw.CURSOR, glfw.CURSOR_HIDDEN)
+            self._watch_display(monitor)  # a projector switched off and on: played through
         self._ctx = moderngl.create_context(require=330)
         self.renderer = LiveRenderer(
             self.cal,
@@ -248,6 +253,7 @@ class WindowLifecycle:
         if self._ctx is not None:
             self._ctx.release()
         if self._win is not None and self._glfw is not None:
+            self._unwatch_display()
             self._glfw.glfw.destroy_window(self._win)
             self._win = None
         if self._glfw is not None:

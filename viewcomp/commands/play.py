@@ -138,7 +138,9 @@ def _tracker(src: str | None, rig: object, all_faces: bool) -> tuple[object, ...
         return ()
     from viewcomp.rt.track.run import TrackerThread, build, default_options
 
-    pipeline = build(src, rig, default_options(rig))  # type: ignore[arg-type]
+    options = default_options(rig)  # type: ignore[arg-type]
+    options.realtime = True  # a video or an image sequence is paced as a camera would be
+    pipeline = build(src, rig, options)  # type: ignore[arg-type]
     return (TrackerThread(pipeline, all_faces),)
 
 
