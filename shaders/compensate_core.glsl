@@ -7,6 +7,7 @@
 // compiler folds). What it must define is how the inverse LUT and the lobe table are read:
 vec2 inv_pair(int c, int i);  // (inv_lut[i, c], inv_lut[i + 1, c]); at i = N - 1 the last twice
 vec3 lobe_entry(int i);       // lobe[i] (RGB), i in 0..n - 1 (RuntimeModel.lobe)
+vec2 field_node(int i);       // the adaptive tone map's node i = nx row + column: (gain, offset)
 
 // The pixel method's per-pixel values at one grid pixel: rows of Ww | Aw (w0..w2), rows of
 // Wc | Ac (c0..c2), the unit reflection vector R | the camera's lobe (red), the surface
@@ -172,6 +173,67 @@ vec3 cached_t2(vec4 g0, vec4 g1, vec4 g2, vec3 b, vec3 d, vec3 pw, float alpha, 
 vec3 paper_t2(vec4 a0, vec4 a1, vec4 a2, vec3 pw, float top) {
     vec3 t2 = vec3(dot(a0.xyz, pw), dot(a1.xyz, pw), dot(a2.xyz, pw)) + vec3(a0.w, a1.w, a2.w);
     return clamp(t2, 0.0, top);
+}
+
+// ---- The adaptive tone map (viewcomp.calib.model.gamut; docs/RUNTIME.md "Adaptive tone map").
+// Its constants come as gk = (KNEE, TINY, RATIO_MAX, SHARE_MAX) and limit = GREY_LIMIT
+// (viewcomp.calib.model.shader_inputs.gamut_constants).
+
+// The field's (gain, offset) at grid pixel p: bilinear between the nx x ny nodes, node 0 on
+// the first pixel's centre and node n - 1 on the last's; step = (nx - 1) / (W - 1),
+// (ny - 1) / (H - 1) as float32 (gamut.node_weights, gamut.field_at).
+vec2 field_at(ivec2 p, int nx, int ny, vec2 step) {
+    vec2 x = vec2(p) * step;
+    ivec2 i0 = min(ivec2(x), ivec2(max(nx - 2, 0), max(ny - 2, 0)));
+    vec2 f = x - vec2(i0);
+    ivec2 i1 = min(i0 + 1, ivec2(nx - 1, ny - 1));
+    vec2 z00 = field_node(i0.y * nx + i0.x);
+    vec2 z01 = field_node(i0.y * nx + i1.x);
+    vec2 z10 = field_node(i1.y * nx + i0.x);
+    vec2 z11 = field_node(i1.y * nx + i1.x);
+    vec2 top = z00 + (z01 - z00) * f.x;
+    vec2 bot = z10 + (z11 - z10) * f.x;
+    return top + (bot - top) * f.y;
+}
+
+// The greys n (1, 1, 1) a pixel can show, n v + c in [0, 1]^3: (n_lo, n_hi), n_lo > n_hi
+// when none (gamut.grey_range). A channel with v = 0 bounds nothing.
+vec2 grey_range(vec3 v, vec3 c, float tiny, float limit) {
+    bvec3 live = greaterThan(abs(v), vec3(tiny));
+    vec3 safe = mix(vec3(1.0), v, live);
+    vec3 a = -c / safe;
+    vec3 b = (1.0 - c) / safe;
+    vec3 lo = mix(vec3(-limit), min(a, b), live);
+    vec3 hi = mix(vec3(limit), max(a, b), live);
+    return clamp(vec2(max(max(lo.x, lo.y), lo.z), min(min(hi.x, hi.y), hi.z)), -limit, limit);
+}
+
+// x pressed into [lo, hi] by the rational knee over the top and bottom kn of the range
+// (gamut.knee).
+float knee(float x, float lo, float hi, float kn, float tiny) {
+    float r = kn * max(hi - lo, tiny);
+    float up = max(x - (hi - r), 0.0);
+    float down = max((lo + r) - x, 0.0);
+    return x - up + up / (1.0 + up / r) + down - down / (1.0 + down / r);
+}
+
+// The adaptive tone map's projector light in [0, 1]^3 (gamut.soft_light): the target
+// g C_w + o asks for g u + o v + c; its luminance (k . C_w = luma_cw) is pressed into the
+// grey range by the knee, chromaticity kept, then its chroma toward that grey by the knee on
+// the share that fits. go = (g, o) (field_at), range = grey_range(v, c).
+vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4 gk) {
+    float lum = go.x * luma_cw + go.y;
+    bool ok = range.x <= range.y;
+    float lum2 = ok ? knee(lum, range.x, range.y, gk.x, gk.y) : lum;
+    bool lit = lum > gk.y;
+    float ratio = lit ? min(lum2 / lum, gk.z) : 0.0;
+    vec3 grey = lum2 * v + c;
+    vec3 chroma = lit ? (ratio * go.x) * u + (ratio * go.y - lum2) * v : vec3(0.0);
+    vec3 room = mix(-grey, 1.0 - grey, greaterThan(chroma, vec3(0.0)));
+    vec3 share = mix(vec3(gk.w), room / chroma, greaterThan(abs(chroma), vec3(gk.y)));
+    float t_max = clamp(min(min(share.x, share.y), share.z), 0.0, gk.w);
+    float t = ok ? knee(1.0, 0.0, t_max, gk.x, gk.y) : 1.0;
+    return clamp(grey + t * chroma, 0.0, 1.0);
 }
 
 // Linear interpolation in the inverse LUT (reference.lut_inverse) at the squared position

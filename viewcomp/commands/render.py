@@ -39,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="how the tone map is chosen: paper (Eq. 21/22), global (one alpha, beta of the "
         "smallest predicted error: the pixel method's default) or adaptive (a smooth gain and "
         "offset field with a hue-keeping soft clip into each pixel's reach; pixel method, one "
-        "eye, --backend cpu)",
+        "eye)",
     )
     p.add_argument(
         "--backend",
@@ -144,8 +144,6 @@ def _check_args(args: argparse.Namespace) -> None:
     from viewcomp.rt.render.pipeline import is_image
 
     check_input_file(args.input, "input", "an image or a video file")
-    if args.tone == "adaptive" and args.backend != "cpu":
-        raise UsageError("--tone adaptive runs on --backend cpu only (not yet in the shader)")
     if args.tone == "adaptive" and args.method != "pixel":
         raise UsageError("--tone adaptive needs --method pixel")
     if args.tone in ("global", "adaptive") and args.method == "paper":
