@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any
 import moderngl
 import numpy as np
 
-from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.gamut import ToneField
+from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.shader_inputs import (
     MAP_TEXELS,
     field_nodes,
