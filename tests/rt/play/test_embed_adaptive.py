@@ -3,6 +3,7 @@ numpy reference computes for the field that frame's parameters hold."""
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -46,5 +47,5 @@ def test_live_renderer_draws_the_reference_of_its_field(gl_ctx: Any, async_tone:
     finally:
         fbo.release()
     if not async_tone:  # each frame's own field: eased within the shot, a new one at the cut
-        moves = [float(np.abs(b.gain - a.gain).max()) for a, b in zip(fields, fields[1:])]
+        moves = [float(np.abs(b.gain - a.gain).max()) for a, b in itertools.pairwise(fields)]
         assert max(moves[:2] + moves[3:]) < moves[2]
