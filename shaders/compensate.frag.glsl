@@ -100,8 +100,11 @@ uniform int u_n_eyes;
 uniform vec2 u_field[FIELD_NX * FIELD_NY];
 uniform samplerBuffer u_luma;
 
-vec2 field_node(int i) {
-    return u_field[i];
+// The field's (gain, offset) at grid pixel p (field_cell, field_blend).
+vec2 field_at(ivec2 p) {
+    vec2 f;
+    ivec4 i = field_cell(p, FIELD_NX, FIELD_NY, FIELD_STEP, f);
+    return field_blend(u_field[i.x], u_field[i.y], u_field[i.z], u_field[i.w], f);
 }
 
 vec2 inv_pair(int c, int i) {
@@ -213,7 +216,7 @@ void main() {
     vec3 u = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
     vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
         + vec3(m.w0.w, m.w1.w, m.w2.w);
-    vec3 y = soft_light(u, b, -d, dot(GAMUT_LUMA, cw), field_at(p, FIELD_NX, FIELD_NY, FIELD_STEP),
+    vec3 y = soft_light(u, b, -d, dot(GAMUT_LUMA, cw), field_at(p),
                         grey_range(b, -d, GAMUT_K.y, GAMUT_LIMIT), GAMUT_K);
     vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 8
@@ -224,7 +227,7 @@ void main() {
     vec3 us = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
     vec4 lr = texelFetch(u_luma, p.y * GRID_W + p.x);
     vec3 y = soft_light(us / SQ_SCALE, tb.xyz / SQ_SCALE, (SQ_OFF - td.xyz) / SQ_SCALE,
-                        dot(lr.xyz, pw) + lr.w, field_at(p, FIELD_NX, FIELD_NY, FIELD_STEP),
+                        dot(lr.xyz, pw) + lr.w, field_at(p),
                         vec2(tb.w, td.w), GAMUT_K);
     vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 2

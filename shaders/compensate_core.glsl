@@ -7,7 +7,6 @@
 // compiler folds). What it must define is how the inverse LUT and the lobe table are read:
 vec2 inv_pair(int c, int i);  // (inv_lut[i, c], inv_lut[i + 1, c]); at i = N - 1 the last twice
 vec3 lobe_entry(int i);       // lobe[i] (RGB), i in 0..n - 1 (RuntimeModel.lobe)
-vec2 field_node(int i);       // the adaptive tone map's node i = nx row + column: (gain, offset)
 
 // The pixel method's per-pixel values at one grid pixel: rows of Ww | Aw (w0..w2), rows of
 // Wc | Ac (c0..c2), the unit reflection vector R | the camera's lobe (red), the surface
@@ -179,18 +178,20 @@ vec3 paper_t2(vec4 a0, vec4 a1, vec4 a2, vec3 pw, float top) {
 // Its constants come as gk = (KNEE, TINY, RATIO_MAX, SHARE_MAX) and limit = GREY_LIMIT
 // (viewcomp.calib.model.shader_inputs.gamut_constants).
 
-// The field's (gain, offset) at grid pixel p: bilinear between the nx x ny nodes, node 0 on
-// the first pixel's centre and node n - 1 on the last's; step = (nx - 1) / (W - 1),
-// (ny - 1) / (H - 1) as float32 (gamut.node_weights, gamut.field_at).
-vec2 field_at(ivec2 p, int nx, int ny, vec2 step) {
+// The adaptive tone map's field at grid pixel p is bilinear between the nx x ny nodes, node 0
+// on the first pixel's centre and node n - 1 on the last's (gamut.node_weights,
+// gamut.field_at). field_cell: the indices (nx row + column) of the four nodes around p,
+// (z00, z01, z10, z11), and the weights f; step = (nx - 1) / (W - 1), (ny - 1) / (H - 1) as
+// float32. The including file fetches the nodes' (gain, offset) and calls field_blend.
+ivec4 field_cell(ivec2 p, int nx, int ny, vec2 step, out vec2 f) {
     vec2 x = vec2(p) * step;
     ivec2 i0 = min(ivec2(x), ivec2(max(nx - 2, 0), max(ny - 2, 0)));
-    vec2 f = x - vec2(i0);
+    f = x - vec2(i0);
     ivec2 i1 = min(i0 + 1, ivec2(nx - 1, ny - 1));
-    vec2 z00 = field_node(i0.y * nx + i0.x);
-    vec2 z01 = field_node(i0.y * nx + i1.x);
-    vec2 z10 = field_node(i1.y * nx + i0.x);
-    vec2 z11 = field_node(i1.y * nx + i1.x);
+    return ivec4(i0.y * nx + i0.x, i0.y * nx + i1.x, i1.y * nx + i0.x, i1.y * nx + i1.x);
+}
+
+vec2 field_blend(vec2 z00, vec2 z01, vec2 z10, vec2 z11, vec2 f) {
     vec2 top = z00 + (z01 - z00) * f.x;
     vec2 bot = z10 + (z11 - z10) * f.x;
     return top + (bot - top) * f.y;
@@ -220,7 +221,7 @@ float knee(float x, float lo, float hi, float kn, float tiny) {
 // The adaptive tone map's projector light in [0, 1]^3 (gamut.soft_light): the target
 // g C_w + o asks for g u + o v + c; its luminance (k . C_w = luma_cw) is pressed into the
 // grey range by the knee, chromaticity kept, then its chroma toward that grey by the knee on
-// the share that fits. go = (g, o) (field_at), range = grey_range(v, c).
+// the share that fits. go = (g, o) (field_blend), range = grey_range(v, c).
 vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4 gk) {
     float lum = go.x * luma_cw + go.y;
     bool ok = range.x <= range.y;
