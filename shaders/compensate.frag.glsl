@@ -95,16 +95,20 @@ uniform samplerBuffer u_lobe;  // RGBA32F, LOBE_N: the lobe table (RuntimeModel.
 // 1). Uniforms, not flat inputs: these variants run per eye change, not per frame.
 uniform vec4 u_eyes[MAX_VIEWERS];
 uniform int u_n_eyes;
-// METHODs 7 and 8: the adaptive tone map's nodes (gain, offset), row-major; and per pixel the
-// luminance row (k^T Ww | k . Aw) of the white screen's light (shader_inputs.luma_rows).
-uniform vec2 u_field[FIELD_NX * FIELD_NY];
+// METHODs 7 and 8: the adaptive tone map's field, each row of nodes interpolated along x at
+// every column (RG32F, [W j + x] = (gain, offset); shader_inputs.field_columns, written per
+// frame: 2 reads a pixel instead of 4 nodes and their weights); and per pixel the luminance
+// row (k^T Ww | k . Aw) of the white screen's light (shader_inputs.luma_rows).
+uniform samplerBuffer u_fcol;
 uniform samplerBuffer u_luma;
 
-// The field's (gain, offset) at grid pixel p (field_cell, field_blend).
+// The field's (gain, offset) at grid pixel p (field_rows; gamut.field_at).
 vec2 field_at(ivec2 p) {
-    vec2 f;
-    ivec4 i = field_cell(p, FIELD_NX, FIELD_NY, FIELD_STEP, f);
-    return field_blend(u_field[i.x], u_field[i.y], u_field[i.z], u_field[i.w], f);
+    float fy;
+    ivec2 j = field_rows(p.y, FIELD_NY, FIELD_STEP.y, fy);
+    vec2 top = texelFetch(u_fcol, j.x * GRID_W + p.x).xy;
+    vec2 bot = texelFetch(u_fcol, j.y * GRID_W + p.x).xy;
+    return top + (bot - top) * fy;
 }
 
 vec2 inv_pair(int c, int i) {
@@ -217,19 +221,19 @@ void main() {
     vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
         + vec3(m.w0.w, m.w1.w, m.w2.w);
     vec3 y = soft_light(u, b, -d, dot(GAMUT_LUMA, cw), field_at(p),
-                        grey_range(b, -d, GAMUT_K.y, GAMUT_LIMIT), GAMUT_K);
+                        grey_range(b, -d, GAMUT_K.y, GAMUT_LIMIT), GAMUT_K, vec3(1.0));
     vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 8
     // The adaptive tone map from the view cache: its terms are scaled to the LUT position
-    // (view_terms), so u, v, c are the cached ones unscaled; the reach is cached beside them.
+    // (view_terms: s u, s v and s c = off - d, s = SQ_SCALE), and soft_light works in those
+    // units (top = s), so t2 = s y - off; the reach is cached beside them.
     vec3 pw = lut_forward(level);
     vec4 g0 = VIEW(p, 0), g1 = VIEW(p, 1), g2 = VIEW(p, 2), tb = VIEW(p, 3), td = VIEW(p, 4);
     vec3 us = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
     vec4 lr = texelFetch(u_luma, p.y * GRID_W + p.x);
-    vec3 y = soft_light(us / SQ_SCALE, tb.xyz / SQ_SCALE, (SQ_OFF - td.xyz) / SQ_SCALE,
-                        dot(lr.xyz, pw) + lr.w, field_at(p),
-                        vec2(tb.w, td.w), GAMUT_K);
-    vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
+    vec3 ys = soft_light(us, tb.xyz, SQ_OFF - td.xyz, dot(lr.xyz, pw) + lr.w, field_at(p),
+                         vec2(tb.w, td.w), GAMUT_K, SQ_SCALE);
+    vec3 result = lut_inverse_sq(clamp(ys - SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 2
     vec3 result = lut_inverse_sq(paper_t2(v_frame[0], v_frame[1], v_frame[2],
                                           lut_forward(level), float((N_INV - 1) * (N_INV - 1))));

@@ -191,6 +191,16 @@ ivec4 field_cell(ivec2 p, int nx, int ny, vec2 step, out vec2 f) {
     return ivec4(i0.y * nx + i0.x, i0.y * nx + i1.x, i1.y * nx + i0.x, i1.y * nx + i1.x);
 }
 
+// The same from the rows of nodes already interpolated along x at this pixel's column
+// (top: row i0.y, bot: row i1.y; shader_inputs.field_columns): the blend along y.
+// field_rows: those two rows' indices and the weight f.y of the second.
+ivec2 field_rows(int py, int ny, float step_y, out float fy) {
+    float y = float(py) * step_y;
+    int i0 = min(int(y), max(ny - 2, 0));
+    fy = y - float(i0);
+    return ivec2(i0, min(i0 + 1, ny - 1));
+}
+
 vec2 field_blend(vec2 z00, vec2 z01, vec2 z10, vec2 z11, vec2 f) {
     vec2 top = z00 + (z01 - z00) * f.x;
     vec2 bot = z10 + (z11 - z10) * f.x;
@@ -215,14 +225,23 @@ float knee(float x, float lo, float hi, float kn, float tiny) {
     float r = kn * max(hi - lo, tiny);
     float up = max(x - (hi - r), 0.0);
     float down = max((lo + r) - x, 0.0);
-    return x - up + up / (1.0 + up / r) + down - down / (1.0 + down / r);
+    return x - up + up * r / (r + up) + down - down * r / (r + down);
 }
 
-// The adaptive tone map's projector light in [0, 1]^3 (gamut.soft_light): the target
-// g C_w + o asks for g u + o v + c; its luminance (k . C_w = luma_cw) is pressed into the
-// grey range by the knee, chromaticity kept, then its chroma toward that grey by the knee on
-// the share that fits. go = (g, o) (field_blend), range = grey_range(v, c).
-vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4 gk) {
+// knee(x, lo, hi) where x >= lo + kn (hi - lo): only the top branch can act (the bottom's
+// term is exactly 0 there), e.g. the chroma's share knee(1, 0, t_max) with t_max <= 2.
+float knee_top(float x, float hi, float r) {
+    float up = max(x - (hi - r), 0.0);
+    return x - up + up * r / (r + up);
+}
+
+// The adaptive tone map's projector light (gamut.soft_light): the target g C_w + o asks for
+// g u + o v + c; its luminance (k . C_w = luma_cw) is pressed into the grey range by the
+// knee, chromaticity kept, then its chroma toward that grey by the knee on the share that
+// fits. go = (g, o) (field_blend), range = grey_range(v, c). top: the light's full scale per
+// channel, 1, or s when u, v, c come scaled by s (the view cache's terms, s = SQ_SCALE: the
+// share is a ratio, the same in either unit, and the result is s y, clamped to [0, s]).
+vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4 gk, vec3 top) {
     float lum = go.x * luma_cw + go.y;
     bool ok = range.x <= range.y;
     float lum2 = ok ? knee(lum, range.x, range.y, gk.x, gk.y) : lum;
@@ -230,11 +249,11 @@ vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4
     float ratio = lit ? min(lum2 / lum, gk.z) : 0.0;
     vec3 grey = lum2 * v + c;
     vec3 chroma = lit ? (ratio * go.x) * u + (ratio * go.y - lum2) * v : vec3(0.0);
-    vec3 room = mix(-grey, 1.0 - grey, greaterThan(chroma, vec3(0.0)));
-    vec3 share = mix(vec3(gk.w), room / chroma, greaterThan(abs(chroma), vec3(gk.y)));
+    vec3 room = mix(-grey, top - grey, greaterThan(chroma, vec3(0.0)));
+    vec3 share = mix(vec3(gk.w), room / chroma, greaterThan(abs(chroma), gk.y * top));
     float t_max = clamp(min(min(share.x, share.y), share.z), 0.0, gk.w);
-    float t = ok ? knee(1.0, 0.0, t_max, gk.x, gk.y) : 1.0;
-    return clamp(grey + t * chroma, 0.0, 1.0);
+    float t = ok ? knee_top(1.0, t_max, gk.x * max(t_max, gk.y)) : 1.0;
+    return clamp(grey + t * chroma, vec3(0.0), top);
 }
 
 // Linear interpolation in the inverse LUT (reference.lut_inverse) at the squared position

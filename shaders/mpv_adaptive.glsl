@@ -30,7 +30,7 @@ vec4 hook() {
     ivec4 i = field_cell(ivec2(uv * VC_GRID), VC_FIELD_NX, VC_FIELD_NY, VC_FIELD_STEP, f);
     vec2 go = field_blend(VC_FIELD[i.x], VC_FIELD[i.y], VC_FIELD[i.z], VC_FIELD[i.w], f);
     vec3 y = soft_light(u, v, c, dot(lr.xyz, pw) + lr.w, go,
-                        grey_range(v, c, VC_GAMUT_K.y, VC_GAMUT_LIMIT), VC_GAMUT_K);
+                        grey_range(v, c, VC_GAMUT_K.y, VC_GAMUT_LIMIT), VC_GAMUT_K, vec3(1.0));
     vec3 t2 = pixel_t2(y, VC_SQ_SCALE, VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI);
     return vec4(quantise(lut_inverse_sq(t2)), src.a);
 }

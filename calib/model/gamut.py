@@ -138,7 +138,8 @@ def knee(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     r = KNEE * span  # > 0: both branches divide by it
     up = np.maximum(x - (hi - r), 0.0)  # how far above the top knee's start
     down = np.maximum((lo + r) - x, 0.0)  # how far below the bottom knee's start
-    y = x - up + up / (1.0 + up / r) + down - down / (1.0 + down / r)
+    # up / (1 + up / r) written with one division: up r / (r + up) (the shader's form)
+    y = x - up + up * r / (r + up) + down - down * r / (r + down)
     return y.astype(np.float32)
 
 

@@ -29,6 +29,7 @@ from viewcomp.calib.model.gamut import (
     SHARE_MAX,
     TINY,
     ToneField,
+    node_weights,
 )
 from viewcomp.calib.model.runtime import RuntimeModel
 
@@ -221,3 +222,18 @@ def luma_rows(model: RuntimeModel) -> np.ndarray:
     out[..., :3] = np.einsum("i,hwij->hwj", k, ww)
     out[..., 3] = aw @ k
     return out
+
+
+def field_columns(field: ToneField, width: int) -> np.ndarray:
+    """The field interpolated along x for each row of nodes: (ny, W, 2) float32 (gain,
+    offset), [j, x] = z[j, i0] + (z[j, i0 + 1] - z[j, i0]) f_x, the float32 arithmetic of
+    :func:`~viewcomp.calib.model.gamut.field_at`'s rows, so that the shader's blend of two
+    of them along y (``field_blend_rows`` of compensate_core.glsl) gives its values exactly."""
+    ny, nx = field.nodes
+    z = field_nodes(field).reshape(ny, nx, 2)
+    if nx == 1:
+        return np.ascontiguousarray(np.broadcast_to(z, (ny, width, 2)), np.float32)
+    ix, fx = node_weights(nx, width)
+    ix1 = np.minimum(ix + 1, nx - 1)
+    out = z[:, ix] + (z[:, ix1] - z[:, ix]) * fx[None, :, None]
+    return np.ascontiguousarray(out, np.float32)

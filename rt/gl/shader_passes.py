@@ -19,7 +19,7 @@ from viewcomp.calib.model.gamut import ToneField
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.shader_inputs import (
     MAP_TEXELS,
-    field_nodes,
+    field_columns,
     field_step,
     gamut_constants,
     paper_rows,
@@ -39,7 +39,7 @@ _PATHS = {
     0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience",
     _ADAPTIVE: "adaptive", _ADAPTIVE_CACHED: "adaptive-cached",
 }  # fmt: skip
-_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe u_luma".split()
+_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe u_luma u_fcol".split()
 
 
 class ShaderPasses:
@@ -66,6 +66,8 @@ class ShaderPasses:
     _inv_lo: np.ndarray
     _inv_hi: np.ndarray
     _n_inv: int
+    _fcol_key: tuple[bytes, bytes] | None = None  # the field u_fcol holds
+    _fcol_bytes = 0
 
     if TYPE_CHECKING:  # the compensator's own, declared for the type checker
 
@@ -121,6 +123,23 @@ class ShaderPasses:
             "GAMUT_LUMA": vec_literal(g["luma"]),
         }
 
+    def _write_field_columns(self, field: ToneField) -> None:
+        """The field's rows along x (:func:`field_columns`) into ``u_fcol`` when it changed
+        (one buffer of 3 x W x 8 bytes, grown when a field has more rows)."""
+        key = (field.gain.tobytes(), field.offset.tobytes())
+        if self._fcol_key == key:
+            return
+        cols = field_columns(field, self.width)
+        unit = _SAMPLERS.index("u_fcol")
+        tex = self._units[unit][1]
+        if tex is None or self._fcol_bytes < cols.nbytes:
+            tex = self._buffer_texture(cols.nbytes, "rg32f")
+            self._units[unit] = (unit, tex)
+            self._fcol_bytes = cols.nbytes
+        tex.write(cols)
+        tex.use(unit)
+        self._fcol_key = key
+
     def _frame_values(self) -> bytes:
         """The per-frame inputs v_frame[4] (vec4 each) of the current variant, as bytes."""
         out = np.zeros((4, 4), np.float32)
@@ -162,8 +181,8 @@ class ShaderPasses:
             prog["u_n_eyes"].value = len(self.audience) if self.audience is not None else 0
         if "u_eyes" in prog:
             prog["u_eyes"].write(self._audience_values())
-        if "u_field" in prog and self.field is not None:
-            prog["u_field"].write(field_nodes(self.field).tobytes())
+        if "u_fcol" in prog and self.field is not None:
+            self._write_field_columns(self.field)
         for unit, tex in self._units:
             if tex is not None:
                 tex.use(unit)
