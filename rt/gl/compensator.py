@@ -55,7 +55,6 @@ from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.shader_inputs import (  # noqa: F401 (pixel_texels etc. re-exported)
     MAP_TEXELS,
     as_f32,
-    field_nodes,
     inv_pairs,
     inverse_position,
     inverse_scale,
@@ -283,17 +282,6 @@ class Compensator(FrameIO, ShaderPasses, ViewCache):
         if not (math.isfinite(alpha) and math.isfinite(beta)):
             raise ValueError(f"alpha and beta must be finite, got {alpha}, {beta}")
         self.alpha, self.beta = float(alpha), float(beta)
-
-    def set_field(self, field: ToneField | None) -> None:
-        """The adaptive tone map (pixel method; :mod:`~viewcomp.calib.model.gamut`) in place
-        of (alpha, beta) for one eye, or None for (alpha, beta) again. An audience of several
-        viewers draws with (alpha, beta) (the field is for one eye). A field of other nodes
-        than the last compiles its program once (~0.1-0.3 s)."""
-        if field is not None:
-            if self.method != "pixel":
-                raise ValueError(f"the adaptive tone map needs the pixel method, not {self.method}")
-            field_nodes(field)  # checks it
-        self.field = field
 
     def update_model(
         self,

@@ -20,6 +20,7 @@ from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.shader_inputs import (
     MAP_TEXELS,
     field_columns,
+    field_nodes,
     field_step,
     gamut_constants,
     paper_rows,
@@ -110,6 +111,17 @@ class ShaderPasses:
             set_sampler_units(prog, units, self._loader)
             self._programs[key] = (prog, vao)
         return self._programs[key]
+
+    def set_field(self, field: ToneField | None) -> None:
+        """The adaptive tone map (pixel method; :mod:`~viewcomp.calib.model.gamut`) in place
+        of (alpha, beta) for one eye, or None for (alpha, beta) again. An audience of several
+        viewers draws with (alpha, beta) (the field is for one eye). A field of other nodes
+        than the last compiles its program once (~0.1-0.3 s)."""
+        if field is not None:
+            if self.method != "pixel":
+                raise ValueError(f"the adaptive tone map needs the pixel method, not {self.method}")
+            field_nodes(field)  # checks it
+        self.field = field
 
     def _field_defines(self, nodes: tuple[int, int]) -> dict[str, str | int | float]:
         """The adaptive variants' compiled-in constants for a field of ``nodes`` = (ny, nx)."""
