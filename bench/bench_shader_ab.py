@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-import viewcomp.rt.gl.compensator as compensator
+import viewcomp.rt.gl.shader_passes as compensator
 from tests.support.synthetic import smooth_frame, synthetic_model
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.compensator import Compensator

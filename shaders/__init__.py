@@ -16,7 +16,8 @@ Files:
 - ``compensate.frag.glsl``: the GL compensator's fragment shader for the methods
   ``identity``, ``pixel`` and ``paper``, one fragment path per variant.
 - ``mpv_held.glsl`` (pixel method, a fixed eye), ``mpv_pixel.glsl`` (pixel method, the
-  eye from a ``//!PARAM``), ``mpv_paper.glsl``: the body of the mpv user shader of
+  eye from a ``//!PARAM``), ``mpv_adaptive.glsl`` (pixel method, a fixed eye, the adaptive
+  tone map), ``mpv_paper.glsl``: the body of the mpv user shader of
   ``viewcomp export-mpv`` (mpv's sampling of the frame and the maps around the same
   formula), all including ``mpv_lut.glsl`` (the formula and mpv's sampling of the LUTs).
 - ``mpv_harness.frag.glsl``: runs an exported mpv hook body as a fragment shader here (for

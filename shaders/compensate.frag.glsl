@@ -22,7 +22,8 @@
 // Variant (one program each; llvmpipe would otherwise run every branch for every pixel):
 // METHOD 0 identity, 1 pixel, 2 paper, 3 pixel from the view cache, 4 the view cache itself
 // (see "View cache" below), 5 pixel for an audience of several viewers (u_eyes), 6 the view
-// cache of an audience; INPUT 0 the RGB8UI texture u_rgb, 1 yuv420p planes (yuv.glsl).
+// cache of an audience, 7 pixel with the adaptive tone map (u_field), 8 the same from the view
+// cache; INPUT 0 the RGB8UI texture u_rgb, 1 yuv420p planes (yuv.glsl).
 #ifndef METHOD
 #define METHOD 1
 #endif
@@ -58,6 +59,19 @@
 #ifndef LOBE_BLACK
 #define LOBE_BLACK vec3(0.0)  // the projector leak's share of the black level
 #endif
+// The adaptive tone map (METHODs 7, 8): FIELD_NX x FIELD_NY nodes (u_field), FIELD_STEP their
+// spacing in pixels^-1, GAMUT_K and GAMUT_LIMIT its constants, GAMUT_LUMA the luminance
+// weights (viewcomp.calib.model.shader_inputs.gamut_constants, field_step).
+#ifndef FIELD_NX
+#define FIELD_NX 2
+#define FIELD_NY 2
+#define FIELD_STEP vec2(1.0)
+#endif
+#ifndef GAMUT_K
+#define GAMUT_K vec4(0.25, 1e-6, 64.0, 2.0)
+#define GAMUT_LIMIT 1000.0
+#define GAMUT_LUMA vec3(0.2126, 0.7152, 0.0722)
+#endif
 #ifndef MAX_VIEWERS
 #define MAX_VIEWERS 16  // viewcomp.calib.world.audience.MAX_VIEWERS
 #endif
@@ -81,6 +95,21 @@ uniform samplerBuffer u_lobe;  // RGBA32F, LOBE_N: the lobe table (RuntimeModel.
 // 1). Uniforms, not flat inputs: these variants run per eye change, not per frame.
 uniform vec4 u_eyes[MAX_VIEWERS];
 uniform int u_n_eyes;
+// METHODs 7 and 8: the adaptive tone map's field, each row of nodes interpolated along x at
+// every column (RG32F, [W j + x] = (gain, offset); shader_inputs.field_columns, written per
+// frame: 2 reads a pixel instead of 4 nodes and their weights); and per pixel the luminance
+// row (k^T Ww | k . Aw) of the white screen's light (shader_inputs.luma_rows).
+uniform samplerBuffer u_fcol;
+uniform samplerBuffer u_luma;
+
+// The field's (gain, offset) at grid pixel p (field_rows; gamut.field_at).
+vec2 field_at(ivec2 p) {
+    float fy;
+    ivec2 j = field_rows(p.y, FIELD_NY, FIELD_STEP.y, fy);
+    vec2 top = texelFetch(u_fcol, j.x * GRID_W + p.x).xy;
+    vec2 bot = texelFetch(u_fcol, j.y * GRID_W + p.x).xy;
+    return top + (bot - top) * fy;
+}
 
 vec2 inv_pair(int c, int i) {
     return texelFetch(u_inv, N_INV * c + i).xy;
@@ -104,7 +133,8 @@ PixelMaps read_maps(ivec2 p) {
 // each solving its pixel once (5x the work, once per eye). The target's rows are then copied
 // into the buffer texture u_view (row-major), and METHOD 3 reads 5 texels instead of 8 and
 // skips the lobe and the solve. Same formula, other rounding: tested against the reference
-// like METHOD 1.
+// like METHOD 1. The spare w of texels 3 and 4 hold the pixel's grey range (n_lo, n_hi) at
+// the eye (its reach; grey_range), which METHOD 8 reads.
 #ifndef VIEW_BX
 #define VIEW_BX 5
 #define VIEW_BY 1
@@ -152,8 +182,9 @@ void main() {
     audience_normal(m, nn, s, qv);
     audience_view_terms(nn, s, qv, m, SQ_SCALE, SQ_OFF, g0, g1, g2, b, d);
 #endif
-    frag_color = k == 0 ? g0 : (k == 1 ? g1 : (k == 2 ? g2 : (k == 3 ? vec4(b, 0.0)
-                 : (k == 4 ? vec4(d, 0.0) : vec4(0.0)))));
+    vec2 reach = grey_range(b / SQ_SCALE, (SQ_OFF - d) / SQ_SCALE, GAMUT_K.y, GAMUT_LIMIT);
+    frag_color = k == 0 ? g0 : (k == 1 ? g1 : (k == 2 ? g2 : (k == 3 ? vec4(b, reach.x)
+                 : (k == 4 ? vec4(d, reach.y) : vec4(0.0)))));
 #else
     vec2 uv = v_uv;
     ivec2 p = ivec2(uv * vec2(GRID_W, GRID_H));  // this fragment's grid pixel
@@ -178,6 +209,31 @@ void main() {
     vec3 t2 = cached_t2(VIEW(p, 0), VIEW(p, 1), VIEW(p, 2), VIEW(p, 3).xyz, VIEW(p, 4).xyz,
                         lut_forward(level), v_frame[0].w, v_frame[1].x);
     vec3 result = lut_inverse_sq(clamp(t2, SQ_LO, SQ_HI));
+#elif METHOD == 7
+    // The adaptive tone map, solved at the eye: u, v, c unscaled (view_terms with scale 1).
+    PixelMaps m = read_maps(p);
+    vec4 g0, g1, g2;
+    vec3 b, d;
+    view_terms(m, v_frame[0].xyz, LOBE_HALF, LOBE_N, LOBE_BLACK, vec3(1.0), vec3(0.0), g0, g1,
+               g2, b, d);
+    vec3 pw = lut_forward(level);
+    vec3 u = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
+    vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
+        + vec3(m.w0.w, m.w1.w, m.w2.w);
+    vec3 y = soft_light(u, b, -d, dot(GAMUT_LUMA, cw), field_at(p),
+                        grey_range(b, -d, GAMUT_K.y, GAMUT_LIMIT), GAMUT_K, vec3(1.0));
+    vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
+#elif METHOD == 8
+    // The adaptive tone map from the view cache: its terms are scaled to the LUT position
+    // (view_terms: s u, s v and s c = off - d, s = SQ_SCALE), and soft_light works in those
+    // units (top = s), so t2 = s y - off; the reach is cached beside them.
+    vec3 pw = lut_forward(level);
+    vec4 g0 = VIEW(p, 0), g1 = VIEW(p, 1), g2 = VIEW(p, 2), tb = VIEW(p, 3), td = VIEW(p, 4);
+    vec3 us = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
+    vec4 lr = texelFetch(u_luma, p.y * GRID_W + p.x);
+    vec3 ys = soft_light(us, tb.xyz, SQ_OFF - td.xyz, dot(lr.xyz, pw) + lr.w, field_at(p),
+                         vec2(tb.w, td.w), GAMUT_K, SQ_SCALE);
+    vec3 result = lut_inverse_sq(clamp(ys - SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 2
     vec3 result = lut_inverse_sq(paper_t2(v_frame[0], v_frame[1], v_frame[2],
                                           lut_forward(level), float((N_INV - 1) * (N_INV - 1))));

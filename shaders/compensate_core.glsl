@@ -174,6 +174,88 @@ vec3 paper_t2(vec4 a0, vec4 a1, vec4 a2, vec3 pw, float top) {
     return clamp(t2, 0.0, top);
 }
 
+// ---- The adaptive tone map (viewcomp.calib.model.gamut; docs/RUNTIME.md "Adaptive tone map").
+// Its constants come as gk = (KNEE, TINY, RATIO_MAX, SHARE_MAX) and limit = GREY_LIMIT
+// (viewcomp.calib.model.shader_inputs.gamut_constants).
+
+// The adaptive tone map's field at grid pixel p is bilinear between the nx x ny nodes, node 0
+// on the first pixel's centre and node n - 1 on the last's (gamut.node_weights,
+// gamut.field_at). field_cell: the indices (nx row + column) of the four nodes around p,
+// (z00, z01, z10, z11), and the weights f; step = (nx - 1) / (W - 1), (ny - 1) / (H - 1) as
+// float32. The including file fetches the nodes' (gain, offset) and calls field_blend.
+ivec4 field_cell(ivec2 p, int nx, int ny, vec2 step, out vec2 f) {
+    vec2 x = vec2(p) * step;
+    ivec2 i0 = min(ivec2(x), ivec2(max(nx - 2, 0), max(ny - 2, 0)));
+    f = x - vec2(i0);
+    ivec2 i1 = min(i0 + 1, ivec2(nx - 1, ny - 1));
+    return ivec4(i0.y * nx + i0.x, i0.y * nx + i1.x, i1.y * nx + i0.x, i1.y * nx + i1.x);
+}
+
+// The same from the rows of nodes already interpolated along x at this pixel's column
+// (top: row i0.y, bot: row i1.y; shader_inputs.field_columns): the blend along y.
+// field_rows: those two rows' indices and the weight f.y of the second.
+ivec2 field_rows(int py, int ny, float step_y, out float fy) {
+    float y = float(py) * step_y;
+    int i0 = min(int(y), max(ny - 2, 0));
+    fy = y - float(i0);
+    return ivec2(i0, min(i0 + 1, ny - 1));
+}
+
+vec2 field_blend(vec2 z00, vec2 z01, vec2 z10, vec2 z11, vec2 f) {
+    vec2 top = z00 + (z01 - z00) * f.x;
+    vec2 bot = z10 + (z11 - z10) * f.x;
+    return top + (bot - top) * f.y;
+}
+
+// The greys n (1, 1, 1) a pixel can show, n v + c in [0, 1]^3: (n_lo, n_hi), n_lo > n_hi
+// when none (gamut.grey_range). A channel with v = 0 bounds nothing.
+vec2 grey_range(vec3 v, vec3 c, float tiny, float limit) {
+    bvec3 live = greaterThan(abs(v), vec3(tiny));
+    vec3 safe = mix(vec3(1.0), v, live);
+    vec3 a = -c / safe;
+    vec3 b = (1.0 - c) / safe;
+    vec3 lo = mix(vec3(-limit), min(a, b), live);
+    vec3 hi = mix(vec3(limit), max(a, b), live);
+    return clamp(vec2(max(max(lo.x, lo.y), lo.z), min(min(hi.x, hi.y), hi.z)), -limit, limit);
+}
+
+// x pressed into [lo, hi] by the rational knee over the top and bottom kn of the range
+// (gamut.knee).
+float knee(float x, float lo, float hi, float kn, float tiny) {
+    float r = kn * max(hi - lo, tiny);
+    float up = max(x - (hi - r), 0.0);
+    float down = max((lo + r) - x, 0.0);
+    return x - up + up * r / (r + up) + down - down * r / (r + down);
+}
+
+// knee(x, lo, hi) where x >= lo + kn (hi - lo): only the top branch can act (the bottom's
+// term is exactly 0 there), e.g. the chroma's share knee(1, 0, t_max) with t_max <= 2.
+float knee_top(float x, float hi, float r) {
+    float up = max(x - (hi - r), 0.0);
+    return x - up + up * r / (r + up);
+}
+
+// The adaptive tone map's projector light (gamut.soft_light): the target g C_w + o asks for
+// g u + o v + c; its luminance (k . C_w = luma_cw) is pressed into the grey range by the
+// knee, chromaticity kept, then its chroma toward that grey by the knee on the share that
+// fits. go = (g, o) (field_blend), range = grey_range(v, c). top: the light's full scale per
+// channel, 1, or s when u, v, c come scaled by s (the view cache's terms, s = SQ_SCALE: the
+// share is a ratio, the same in either unit, and the result is s y, clamped to [0, s]).
+vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4 gk, vec3 top) {
+    float lum = go.x * luma_cw + go.y;
+    bool ok = range.x <= range.y;
+    float lum2 = ok ? knee(lum, range.x, range.y, gk.x, gk.y) : lum;
+    bool lit = lum > gk.y;
+    float ratio = lit ? min(lum2 / lum, gk.z) : 0.0;
+    vec3 grey = lum2 * v + c;
+    vec3 chroma = lit ? (ratio * go.x) * u + (ratio * go.y - lum2) * v : vec3(0.0);
+    vec3 room = mix(-grey, top - grey, greaterThan(chroma, vec3(0.0)));
+    vec3 share = mix(vec3(gk.w), room / chroma, greaterThan(abs(chroma), gk.y * top));
+    float t_max = clamp(min(min(share.x, share.y), share.z), 0.0, gk.w);
+    float t = ok ? knee_top(1.0, t_max, gk.x * max(t_max, gk.y)) : 1.0;
+    return clamp(grey + t * chroma, vec3(0.0), top);
+}
+
 // Linear interpolation in the inverse LUT (reference.lut_inverse) at the squared position
 // t2 in [0, (N - 1)^2]: the LUT is sampled uniformly in the square root of the normalised
 // value, so the position is t = sqrt(t2). t >= 0 truncates to its floor, and at t = N - 1

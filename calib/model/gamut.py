@@ -30,7 +30,8 @@ import numpy as np
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 #: The soft clip's knee: the top and bottom KNEE of a range are compressed toward its ends.
 KNEE = np.float32(0.25)
-_TINY = np.float32(1e-6)
+#: Below this a value counts as zero (a channel of v, a luminance, a chroma).
+TINY = np.float32(1e-6)
 #: Greys beyond +-GREY_LIMIT (camera units, full scale 1) are never asked for: the bound of a
 #: range that no channel bounds.
 GREY_LIMIT = np.float32(1e3)
@@ -112,10 +113,10 @@ def grey_range(v: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A channel with v = 0 bounds nothing (its light does not change along the greys)."""
     v = v.astype(np.float32)
     c = c.astype(np.float32)
-    safe = np.where(np.abs(v) > _TINY, v, np.float32(1.0))
+    safe = np.where(np.abs(v) > TINY, v, np.float32(1.0))
     a, b = (0.0 - c) / safe, (1.0 - c) / safe
-    lo = np.where(np.abs(v) > _TINY, np.minimum(a, b), -GREY_LIMIT).max(axis=-1)
-    hi = np.where(np.abs(v) > _TINY, np.maximum(a, b), GREY_LIMIT).min(axis=-1)
+    lo = np.where(np.abs(v) > TINY, np.minimum(a, b), -GREY_LIMIT).max(axis=-1)
+    hi = np.where(np.abs(v) > TINY, np.maximum(a, b), GREY_LIMIT).min(axis=-1)
     return (
         np.clip(lo, -GREY_LIMIT, GREY_LIMIT).astype(np.float32),
         np.clip(hi, -GREY_LIMIT, GREY_LIMIT).astype(np.float32),
@@ -133,11 +134,12 @@ def reach(m: np.ndarray, a: np.ndarray) -> Reach:
 def knee(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """x pressed into [lo, hi]: unchanged in the middle, a rational knee over the top and
     bottom KNEE of the range (continuous with slope 1 where it starts, tending to the end)."""
-    span = np.maximum(hi - lo, _TINY)
+    span = np.maximum(hi - lo, TINY)
     r = KNEE * span  # > 0: both branches divide by it
     up = np.maximum(x - (hi - r), 0.0)  # how far above the top knee's start
     down = np.maximum((lo + r) - x, 0.0)  # how far below the bottom knee's start
-    y = x - up + up / (1.0 + up / r) + down - down / (1.0 + down / r)
+    # up / (1 + up / r) written with one division: up r / (r + up) (the shader's form)
+    y = x - up + up * r / (r + up) + down - down * r / (r + down)
     return y.astype(np.float32)
 
 
@@ -167,7 +169,7 @@ def soft_light(
     ok = grey_lo <= grey_hi
     lum2 = np.where(ok, knee(lum, grey_lo, np.where(ok, grey_hi, grey_lo)), lum)
     # T' = T Y'/Y keeps the chromaticity; a target with no luminance becomes the grey Y'.
-    lit = lum > _TINY
+    lit = lum > TINY
     ratio = np.where(lit, np.minimum(lum2 / np.where(lit, lum, f32(1.0)), RATIO_MAX), 0.0)
     grey = (lum2[..., None] * v + c).astype(f32)
     chroma = ((ratio * gain)[..., None] * u + ((ratio * offset - lum2)[..., None]) * v).astype(f32)
@@ -175,7 +177,7 @@ def soft_light(
     # The share t of the chroma that keeps every channel in [0, 1]: grey + t chroma, pressed
     # by the knee below that share (at most SHARE_MAX: beyond 1 / (1 - KNEE) it is 1).
     room = np.where(chroma > 0, 1.0 - grey, -grey)
-    share = np.where(np.abs(chroma) > _TINY, room / np.where(chroma != 0, chroma, 1.0), SHARE_MAX)
+    share = np.where(np.abs(chroma) > TINY, room / np.where(chroma != 0, chroma, 1.0), SHARE_MAX)
     t_max = np.clip(np.min(share, axis=-1), 0.0, SHARE_MAX).astype(f32)
     t = np.where(ok, knee(np.ones_like(t_max), np.zeros_like(t_max), t_max), f32(1.0))
     return np.clip(grey + t[..., None] * chroma, 0.0, 1.0).astype(f32)

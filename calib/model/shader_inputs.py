@@ -7,7 +7,11 @@ the GL compensator (:class:`viewcomp.rt.gl.compensator.Compensator`) and the mpv
   reads them;
 - :func:`inverse_position` (:func:`inverse_scale`): the inverse LUT's squared position;
 - :func:`paper_rows`: the paper method's folded matrices;
-- :func:`lobe_table`, :func:`inv_pairs`: the lobe and inverse-LUT tables as texels.
+- :func:`lobe_table`, :func:`inv_pairs`: the lobe and inverse-LUT tables as texels;
+- the adaptive tone map (:mod:`~viewcomp.calib.model.gamut`): :func:`gamut_constants` (its
+  constants as the shaders' arguments), :func:`field_step` (the nodes' spacing),
+  :func:`field_nodes` (the nodes as the shaders' array) and :func:`luma_rows` (each pixel's
+  white-screen luminance as a row of the forward light).
 """
 
 from __future__ import annotations
@@ -17,6 +21,16 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.model.gamut import (
+    GREY_LIMIT,
+    KNEE,
+    LUMA,
+    RATIO_MAX,
+    SHARE_MAX,
+    TINY,
+    ToneField,
+    node_weights,
+)
 from viewcomp.calib.model.runtime import RuntimeModel
 
 MAP_TEXELS = 8  # per pixel in pixel_texels
@@ -158,3 +172,68 @@ def as_f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} holds NaN or infinite values")
     return arr
+
+
+def gamut_constants() -> dict[str, np.ndarray]:
+    """The adaptive tone map's constants as the shaders take them (compensate_core.glsl's
+    ``soft_light``): ``k`` = (KNEE, TINY, RATIO_MAX, SHARE_MAX) (4,), ``limit`` = GREY_LIMIT
+    (1,), ``luma`` the luminance weights (3,); float32, the values of
+    :mod:`~viewcomp.calib.model.gamut`."""
+    return {
+        "k": np.array([KNEE, TINY, RATIO_MAX, SHARE_MAX], np.float32),
+        "limit": np.array([GREY_LIMIT], np.float32),
+        "luma": LUMA.astype(np.float32),
+    }
+
+
+def field_step(nodes: tuple[int, int], shape: tuple[int, int]) -> np.ndarray:
+    """(nx - 1) / (W - 1), (ny - 1) / (H - 1) as float32 (2,): node coordinates per pixel
+    along x and y, as :func:`~viewcomp.calib.model.gamut.node_weights` rounds them, for
+    ``nodes`` = (ny, nx) on an ``shape`` = (H, W) grid."""
+    (ny, nx), (h, w) = nodes, shape
+    return np.array([(nx - 1) / max(w - 1, 1), (ny - 1) / max(h - 1, 1)], np.float32)
+
+
+def field_nodes(field: ToneField) -> np.ndarray:
+    """The field's nodes as (ny nx, 2) float32 (gain, offset), row-major (``field_node(i)`` of
+    compensate_core.glsl).
+
+    Raises:
+        ValueError: a field of no nodes or with non-finite values.
+    """
+    ny, nx = field.nodes
+    if ny < 1 or nx < 1 or np.shape(field.offset) != (ny, nx):
+        raise ValueError(f"a tone field needs gain and offset of one (ny, nx) shape, got {ny}x{nx}")
+    out = np.stack([np.ravel(field.gain), np.ravel(field.offset)], axis=1).astype(np.float32)
+    if not np.all(np.isfinite(out)):
+        raise ValueError("the tone field holds NaN or infinite values")
+    return np.ascontiguousarray(out)
+
+
+def luma_rows(model: RuntimeModel) -> np.ndarray:
+    """Per pixel (k^T Ww | k . Aw), (H, W, 4) float32, k = the luminance weights: the white
+    screen's luminance for forward light pw is dot(row.xyz, pw) + row.w (the adaptive tone
+    map's luma_cw, read from the view cache's path where Ww is not fetched)."""
+    h, w = model.shape
+    ww = as_f32(model.Ww, (h, w, 3, 3), "Ww").astype(np.float64)
+    aw = as_f32(model.Aw, (h, w, 3), "Aw").astype(np.float64)
+    k = LUMA.astype(np.float64)
+    out = np.empty((h, w, 4), np.float32)
+    out[..., :3] = np.einsum("i,hwij->hwj", k, ww)
+    out[..., 3] = aw @ k
+    return out
+
+
+def field_columns(field: ToneField, width: int) -> np.ndarray:
+    """The field interpolated along x for each row of nodes: (ny, W, 2) float32 (gain,
+    offset), [j, x] = z[j, i0] + (z[j, i0 + 1] - z[j, i0]) f_x, the float32 arithmetic of
+    :func:`~viewcomp.calib.model.gamut.field_at`'s rows, so that the shader's blend of two
+    of them along y (``field_blend_rows`` of compensate_core.glsl) gives its values exactly."""
+    ny, nx = field.nodes
+    z = field_nodes(field).reshape(ny, nx, 2)
+    if nx == 1:
+        return np.ascontiguousarray(np.broadcast_to(z, (ny, width, 2)), np.float32)
+    ix, fx = node_weights(nx, width)
+    ix1 = np.minimum(ix + 1, nx - 1)
+    out = z[:, ix] + (z[:, ix1] - z[:, ix]) * fx[None, :, None]
+    return np.ascontiguousarray(out, np.float32)

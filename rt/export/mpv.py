@@ -61,12 +61,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.calib.errors import ExportError
+from viewcomp.calib.model.gamut import ToneField
 from viewcomp.calib.model.reference import (
     View,
     audience_normal,
@@ -75,16 +75,17 @@ from viewcomp.calib.model.reference import (
     tone_terms,
 )
 from viewcomp.calib.model.runtime import RuntimeModel
-from viewcomp.calib.model.shader_inputs import inverse_position, paper_rows, pixel_texels
+from viewcomp.calib.model.shader_inputs import inverse_position, paper_rows
 from viewcomp.calib.world import eye as eye_limits
 from viewcomp.calib.world.audience import Audience
+from viewcomp.rt.export.mpv_adaptive import adaptive_defines, adaptive_texels
+from viewcomp.rt.export.mpv_pack import pack_images, pack_maps, split_smooth
 from viewcomp.rt.export.mpv_verify import block_means, check_line, check_still, texture_line
 from viewcomp.shaders import array_literal, assemble, literal, vec_literal
 
 if TYPE_CHECKING:
     from viewcomp.calib.fit.calibrate import Calibration
 
-BASE_STEP = 4  # grid pixels per texel of the smooth base of a precision-8 export
 TONE_TABLE_STEP = 5.0  # degrees between the baked tone maps of the PARAM variant
 TONE_TABLE = np.arange(5.0, 175.0 + 1e-9, TONE_TABLE_STEP)
 
@@ -102,6 +103,7 @@ class MpvShaderInfo:
     beta: float
     precision: int
     bytes: int
+    tone: str = "global"  # how the tone map was chosen: paper, global or adaptive
 
 
 def fit_filter(grid: tuple[int, int]) -> str:
@@ -156,70 +158,6 @@ def full_range_sample(shape: tuple[int, int] = (24, 48)) -> np.ndarray:
     )
     yy, xx = np.mgrid[0:h, 0:w]
     return colours[(xx + 3 * yy) % len(colours)]
-
-
-def pack_images(
-    texels: np.ndarray, precision: int = 16
-) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """Per-pixel texels (H, W, K, 4) as K (H, W, 4) images, image k = texel k of every pixel.
-
-    ``precision`` 16: uint16 images and per texel channel (scale, offset), value = offset
-    + t scale with t = q / 65535 the normalised texel (scale = max - min over the grid);
-    32: float32 images with scale 1 and offset 0. Returns (images, scale (K, 4), offset
-    (K, 4)).
-
-    Raises:
-        ExportError: a precision other than 16 or 32.
-    """
-    if precision not in (8, 16, 32):
-        raise ExportError(f"precision is 8, 16 or 32 bits, got {precision}")
-    k_n = texels.shape[2]
-    scale = np.ones((k_n, 4), np.float64)
-    offset = np.zeros((k_n, 4), np.float64)
-    if precision == 32:
-        images = [np.ascontiguousarray(texels[:, :, k], np.float32) for k in range(k_n)]
-        return images, scale, offset
-    top = float((1 << precision) - 1)
-    images = []
-    for k in range(k_n):
-        f = texels[:, :, k].astype(np.float64)
-        lo, hi = f.min(axis=(0, 1)), f.max(axis=(0, 1))
-        span = hi - lo
-        scale[k], offset[k] = span, lo
-        q = np.rint((f - lo) / np.where(span > 0, span, 1.0) * top)
-        images.append(np.clip(q, 0, top).astype(np.uint8 if precision == 8 else np.uint16))
-    return images, scale, offset
-
-
-def split_smooth(texels: np.ndarray, step: int = BASE_STEP) -> tuple[np.ndarray, np.ndarray]:
-    """Per-pixel texels (H, W, K, 4) as a smooth base at 1/``step`` of the grid (area means,
-    (ceil(H/step), ceil(W/step), K, 4)) and the residual (H, W, K, 4): texels = the base
-    interpolated bilinearly at each pixel's centre (``cv2.resize`` INTER_LINEAR, edges
-    clamped: what ``mpv_held.glsl``'s ``vc_base`` computes) + the residual. The residual
-    spans far less than the texels, so 8 bits of it cost less than 16 of the texels."""
-    h, w, k_n, _ = texels.shape
-    flat = texels.reshape(h, w, k_n * 4).astype(np.float64)
-    size = (-(-w // step), -(-h // step))
-    base = cv2.resize(flat, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
-    up = cv2.resize(base, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
-    return base.reshape(size[1], size[0], k_n, 4), (flat - up).reshape(h, w, k_n, 4)
-
-
-def pack_maps(
-    model: RuntimeModel, precision: int = 16
-) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """The pixel method's maps (:func:`~viewcomp.calib.model.shader_inputs.pixel_texels`) as 8
-    images (:func:`pack_images`): what the eye-following (``//!PARAM``) hook reads.
-
-    Raises:
-        ExportError: a bad precision, or a model array that is missing, of the wrong shape
-            or not finite.
-    """
-    try:
-        texels = pixel_texels(model)
-    except ValueError as exc:
-        raise ExportError(f"the calibration's runtime model: {exc}") from None
-    return pack_images(texels, precision)
 
 
 def held_rows(
@@ -295,6 +233,7 @@ def export_mpv_shader(
     tone: tuple[float, float] | None = None,
     precision: int = 16,
     source: str = "",
+    tone_mode: str | None = None,
 ) -> tuple[str, MpvShaderInfo]:
     """The mpv user shader text for a calibration (see the module docstring).
 
@@ -314,6 +253,10 @@ def export_mpv_shader(
             smooth base at 1/4 of the grid in rgba32f plus the residual in rgba8 maps,
             :func:`split_smooth`; about half the size of 16).
         source: a note for the header (e.g. the bundle's path).
+        tone_mode: how the tone map is chosen (``Compensation``'s ``tone``): ``"paper"``,
+            ``"global"`` or ``"adaptive"`` (the smooth field with the hue-keeping soft clip,
+            one per export, chosen for ``tone_sample``; pixel method, a fixed eye, precision
+            16 or 32: :mod:`~viewcomp.rt.export.mpv_adaptive`); None: the method's.
 
     Raises:
         ExportError: an impossible combination, with the fix.
@@ -329,6 +272,7 @@ def export_mpv_shader(
         tone,
         precision,
         source,
+        tone_mode,
     )
     req, e = _check(cal, req)
     build = _build(cal, req, e)
@@ -349,6 +293,7 @@ class _Request:
     tone: tuple[float, float] | None
     precision: int
     source: str
+    tone_mode: str | None = None
 
 
 @dataclass
@@ -365,6 +310,7 @@ class _Build:
     textures: list[str] = field(default_factory=list)
     check: str = ""
     check_tone: tuple[float, float] | None = None  # --param: the table's at the default angle
+    field: ToneField | None = None  # the adaptive tone map baked in
 
 
 def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
@@ -399,16 +345,35 @@ def _check(cal: Calibration, req: _Request) -> tuple[_Request, np.ndarray]:
             "--precision 8 stores the fixed-eye pixel method's rows; fix: use "
             "16 with --param or --method paper"
         )
+    _check_tone(req)
     if req.audience is not None:
         return req, req.audience.centre
     e = cal.eye(angle=None if req.eye is not None else req.angle, eye=req.eye, error=ExportError)
     return req, e
 
 
+def _check_tone(req: _Request) -> None:
+    """Refuse a tone choice the export cannot bake (ExportError, with the fix)."""
+    if req.tone_mode not in (None, "paper", "global", "adaptive"):
+        raise ExportError(f"tone must be paper, global or adaptive, got {req.tone_mode!r}")
+    if req.tone_mode in ("global", "adaptive") and req.method != "pixel":
+        raise ExportError(f"--tone {req.tone_mode} needs --method pixel (the paper's: paper)")
+    if req.tone_mode != "adaptive":
+        return
+    for bad, fix in (
+        (req.param, "drop --param (the field is chosen for one eye)"),
+        (req.audience is not None, "drop --audience (the field is for one eye)"),
+        (req.tone is not None, "give --tone-from, not --alpha/--beta"),
+        (req.precision == 8, "use --precision 16 or 32"),
+    ):
+        if bad:
+            raise ExportError(f"--tone adaptive is baked for one fixed eye; fix: {fix}")
+
+
 def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     """The tone map and everything the hook reads: ``#define`` values and textures."""
     h, w = cal.shape
-    comp = Compensation(cal, req.method, req.lam)
+    comp = Compensation(cal, req.method, req.lam, tone=req.tone_mode)
     sample = full_range_sample() if req.tone_sample is None else thumbnail(req.tone_sample)
     view: View = req.audience if req.audience is not None else e
     p = comp(sample, view)
@@ -418,7 +383,7 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     model = p.model
     n_inv = int(model.inv_lut.shape[0])
     lut = _lut_image(model)
-    out = _Build(alpha, beta, (w, h), e)
+    out = _Build(alpha, beta, (w, h), e, field=p.field)
     out.defines.update({
         "VC_GRID": vec_literal((w, h)), "VC_LUT_W": literal(lut.shape[1]), "VC_N_INV": n_inv,
     })  # fmt: skip
@@ -434,7 +399,8 @@ def _build(cal: Calibration, req: _Request, e: np.ndarray) -> _Build:
     # the numpy reference at this eye and tone map (with --param: the default angle's).
     a_c, b_c = out.check_tone or (alpha, beta)
     still = check_still((w, h))
-    out.check = check_line(block_means(compensate(model, still, view, a_c, b_c)), (w, h))
+    seen = compensate(model, still, view, a_c, b_c, field=out.field)
+    out.check = check_line(block_means(seen), (w, h))
     return out
 
 
@@ -455,6 +421,15 @@ def _build_pixel(
     if req.param:
         images, scale, offset = pack_maps(model, req.precision)
         name = "VC_MAP"
+    elif out.field is not None:
+        try:
+            texels = adaptive_texels(model, np.asarray(view))
+        except np.linalg.LinAlgError:
+            msg = "the screen's mixing matrix is singular at this eye"
+            raise ExportError(f"{msg}; fix: recalibrate, or use another --angle") from None
+        d.update(adaptive_defines(out.field, out.grid))
+        images, scale, offset = pack_images(texels, req.precision)
+        name = "VC_ROW"
     else:
         try:
             rows = held_rows(model, view, out.alpha, out.beta, sq)
@@ -527,9 +502,13 @@ def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
         "// viewcomp: view-dependent compensation as an mpv user shader (`viewcomp export-mpv`).",
         f"// Calibration {req.source or '(in memory)'}: projector grid {w}x{h}, {method} method, "
         f"{where}.",
-        f"// Tone map: alpha {b.alpha:.4f}, beta {b.beta:.5f}"
-        + (" (per angle from a table)" if req.param else "")
-        + ".",
+        (
+            f"// Tone map: adaptive, a {b.field.nodes[0]}x{b.field.nodes[1]}-node field."
+            if b.field is not None
+            else f"// Tone map: alpha {b.alpha:.4f}, beta {b.beta:.5f}"
+            + (" (per angle from a table)" if req.param else "")
+            + "."
+        ),
         f"// Use, fullscreen on the projector (ideally at {w}x{h}):",
         "//   mpv " + " ".join(mpv_args("THIS_FILE", (w, h))) + " --fullscreen VIDEO",
         "// (the --vf fits the video to the grid as `viewcomp render` does, bars included).",
@@ -553,17 +532,16 @@ def _assemble(req: _Request, b: _Build) -> tuple[str, MpvShaderInfo]:
     parts.append("//!HOOK OUTPUT\n")
     parts += [f"//!BIND {name}\n" for name in b.binds]
     parts.append(f"//!DESC viewcomp compensation ({method}, {where})\n")
-    hook = (
-        "mpv_paper.glsl"
-        if method == "paper"
-        else ("mpv_pixel.glsl" if req.param else "mpv_held.glsl")
-    )
+    hook = "mpv_paper.glsl" if method == "paper" else ("mpv_pixel.glsl" if req.param else "")
+    hook = hook or ("mpv_adaptive.glsl" if b.field is not None else "mpv_held.glsl")
     parts.append(assemble(hook, b.defines, directives=False).source)
     parts += b.textures
     text = "".join(parts)
     eye_t = None if req.param else (float(e[0]), float(e[1]), float(e[2]))
     shown_angle = None if req.eye is not None or req.audience is not None else angle
+    tone = "adaptive" if b.field is not None else req.tone_mode
     info = MpvShaderInfo(
-        method, (w, h), shown_angle, eye_t, req.param, b.alpha, b.beta, req.precision, len(text)
-    )
+        method, (w, h), shown_angle, eye_t, req.param, b.alpha, b.beta, req.precision, len(text),
+        tone=tone or ("global" if method == "pixel" else "paper"),
+    )  # fmt: skip
     return text, info

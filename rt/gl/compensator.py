@@ -35,7 +35,7 @@ Typical use::
 
     with Compensator(model) as comp:
         comp.set_angle(60.0, distance=0.5, height=0.035)
-        comp.set_tone(alpha, beta)
+        comp.set_tone(alpha, beta)                # or comp.set_field(field): adaptive
         out = comp.render(frame)              # (H, W, 3) uint8 -> (H, W, 3) uint8
 
 Threading: call it from the thread whose GL context is current (the thread that made it).
@@ -49,6 +49,7 @@ from typing import Any
 import moderngl
 import numpy as np
 
+from viewcomp.calib.model.gamut import ToneField
 from viewcomp.calib.model.reference import lut_forward
 from viewcomp.calib.model.runtime import RuntimeModel
 from viewcomp.calib.model.shader_inputs import (  # noqa: F401 (pixel_texels etc. re-exported)
@@ -58,6 +59,7 @@ from viewcomp.calib.model.shader_inputs import (  # noqa: F401 (pixel_texels etc
     inverse_position,
     inverse_scale,
     lobe_table,
+    luma_rows,
     paper_rows,
     pixel_texel_blocks,
     pixel_texels,
@@ -208,6 +210,7 @@ class Compensator(FrameIO, ShaderPasses, ViewCache):
             self._consts["LOBE_N"] = int(lobe.shape[0])
             self._consts["LOBE_HALF"] = "true" if model.lobe_half else "false"
             self._consts["LOBE_BLACK"] = vec_literal(as_f32(model.lobe_black, (3,), "lobe_black"))
+            units["u_luma"] = self._buffer_texture(luma_rows(model), "rgba32f")
             sq = inverse_position(self._inv_lo, self._inv_hi, n_inv)
             self._consts.update({f"SQ_{k.upper()}": vec_literal(v) for k, v in sq.items()})
         if model.method == "paper":
@@ -225,6 +228,7 @@ class Compensator(FrameIO, ShaderPasses, ViewCache):
         self.last_path = ""  # how the last draw ran: identity, solve, cached, audience or paper
         self.audience: Audience | None = None  # several viewers (set_audience), or one eye
         self.identity = False
+        self.field: ToneField | None = None  # the adaptive tone map (set_field), or (alpha, beta)
         self.set_eye(*self._cam_eye)
         self.set_tone(1.0, 0.0)
         self._yuv_key: tuple[str, str] = ("bt709", "limited")

@@ -15,19 +15,32 @@ from typing import TYPE_CHECKING, Any
 import moderngl
 import numpy as np
 
+from viewcomp.calib.model.gamut import ToneField
 from viewcomp.calib.model.runtime import RuntimeModel
-from viewcomp.calib.model.shader_inputs import MAP_TEXELS, paper_rows, pixel_texel_blocks
+from viewcomp.calib.model.shader_inputs import (
+    MAP_TEXELS,
+    field_columns,
+    field_nodes,
+    field_step,
+    gamut_constants,
+    paper_rows,
+    pixel_texel_blocks,
+)
 from viewcomp.calib.world.audience import MAX_VIEWERS, Audience
 from viewcomp.rt.gl.context import BufferTexture, ProcAddress, set_sampler_units
 from viewcomp.rt.media.frames import yuv_coefficients
-from viewcomp.shaders import build_program
+from viewcomp.shaders import build_program, literal, vec_literal
 
 _METHODS = {"identity": 0, "pixel": 1, "paper": 2}
 _CACHED, _BUILD_VIEW = 3, 4  # shader METHODs of the pixel method's view cache
 _AUDIENCE, _BUILD_AUDIENCE = 5, 6  # an audience: solved per draw, its view cache
-_VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b, d
-_PATHS = {0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience"}
-_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe".split()
+_ADAPTIVE, _ADAPTIVE_CACHED = 7, 8  # the adaptive tone map: solved per draw, from the cache
+_VIEW_TEXELS = 5  # per pixel in the view cache: rows of G | a, b | n_lo, d | n_hi
+_PATHS = {
+    0: "identity", 1: "solve", 2: "paper", _CACHED: "cached", _AUDIENCE: "audience",
+    _ADAPTIVE: "adaptive", _ADAPTIVE_CACHED: "adaptive-cached",
+}  # fmt: skip
+_SAMPLERS = "u_rgb u_y u_uv u_fwd u_inv u_maps u_view u_lobe u_luma u_fcol".split()
 
 
 class ShaderPasses:
@@ -41,6 +54,7 @@ class ShaderPasses:
     alpha: float
     beta: float
     audience: Audience | None
+    field: ToneField | None
     _identity: bool
     _input: int
     _yuv_key: tuple[str, str]
@@ -53,6 +67,8 @@ class ShaderPasses:
     _inv_lo: np.ndarray
     _inv_hi: np.ndarray
     _n_inv: int
+    _fcol_key: tuple[bytes, bytes] | None = None  # the field u_fcol holds
+    _fcol_bytes = 0
 
     if TYPE_CHECKING:  # the compensator's own, declared for the type checker
 
@@ -77,9 +93,13 @@ class ShaderPasses:
         """(program, vertex array) of shader ``method`` on the current input, compiled once."""
         inp = 0 if method in (_BUILD_VIEW, _BUILD_AUDIENCE) else self._input
         yuv = self._yuv_key if inp == 1 else None
-        key = (method, inp, yuv)
+        adaptive = method in (_ADAPTIVE, _ADAPTIVE_CACHED)
+        nodes = self.field.nodes if adaptive and self.field is not None else None
+        key = (method, inp, yuv, nodes)
         if key not in self._programs:
             defines: dict[str, str | int | float] = {**self._consts, "METHOD": method, "INPUT": inp}
+            if nodes is not None:
+                defines.update(self._field_defines(nodes))
             if yuv is not None:
                 k = yuv_coefficients(*yuv)  # type: ignore[arg-type]
                 defines["YUV_K"] = f"ivec4({k.cy}, {k.cr_r}, {k.cb_b}, {k.y_off})"
@@ -91,6 +111,46 @@ class ShaderPasses:
             set_sampler_units(prog, units, self._loader)
             self._programs[key] = (prog, vao)
         return self._programs[key]
+
+    def set_field(self, field: ToneField | None) -> None:
+        """The adaptive tone map (pixel method; :mod:`~viewcomp.calib.model.gamut`) in place
+        of (alpha, beta) for one eye, or None for (alpha, beta) again. An audience of several
+        viewers draws with (alpha, beta) (the field is for one eye). A field of other nodes
+        than the last compiles its program once (~0.1-0.3 s)."""
+        if field is not None:
+            if self.method != "pixel":
+                raise ValueError(f"the adaptive tone map needs the pixel method, not {self.method}")
+            field_nodes(field)  # checks it
+        self.field = field
+
+    def _field_defines(self, nodes: tuple[int, int]) -> dict[str, str | int | float]:
+        """The adaptive variants' compiled-in constants for a field of ``nodes`` = (ny, nx)."""
+        g = gamut_constants()
+        return {
+            "FIELD_NY": nodes[0],
+            "FIELD_NX": nodes[1],
+            "FIELD_STEP": vec_literal(field_step(nodes, (self.height, self.width))),
+            "GAMUT_K": vec_literal(g["k"]),
+            "GAMUT_LIMIT": literal(float(g["limit"][0])),
+            "GAMUT_LUMA": vec_literal(g["luma"]),
+        }
+
+    def _write_field_columns(self, field: ToneField) -> None:
+        """The field's rows along x (:func:`field_columns`) into ``u_fcol`` when it changed
+        (one buffer of 3 x W x 8 bytes, grown when a field has more rows)."""
+        key = (field.gain.tobytes(), field.offset.tobytes())
+        if self._fcol_key == key:
+            return
+        cols = field_columns(field, self.width)
+        unit = _SAMPLERS.index("u_fcol")
+        tex = self._units[unit][1]
+        if tex is None or self._fcol_bytes < cols.nbytes:
+            tex = self._buffer_texture(cols.nbytes, "rg32f")
+            self._units[unit] = (unit, tex)
+            self._fcol_bytes = cols.nbytes
+        tex.write(cols)
+        tex.use(unit)
+        self._fcol_key = key
 
     def _frame_values(self) -> bytes:
         """The per-frame inputs v_frame[4] (vec4 each) of the current variant, as bytes."""
@@ -133,6 +193,8 @@ class ShaderPasses:
             prog["u_n_eyes"].value = len(self.audience) if self.audience is not None else 0
         if "u_eyes" in prog:
             prog["u_eyes"].write(self._audience_values())
+        if "u_fcol" in prog and self.field is not None:
+            self._write_field_columns(self.field)
         for unit, tex in self._units:
             if tex is not None:
                 tex.use(unit)

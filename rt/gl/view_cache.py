@@ -15,6 +15,8 @@ import numpy as np
 
 from viewcomp.calib.world.audience import Audience
 from viewcomp.rt.gl.shader_passes import (
+    _ADAPTIVE,
+    _ADAPTIVE_CACHED,
     _AUDIENCE,
     _BUILD_AUDIENCE,
     _BUILD_VIEW,
@@ -27,6 +29,7 @@ from viewcomp.rt.gl.shader_passes import (
 if TYPE_CHECKING:
     import moderngl
 
+    from viewcomp.calib.model.gamut import ToneField
     from viewcomp.rt.gl.context import BufferTexture
 
 
@@ -37,6 +40,7 @@ class ViewCache:
     method: str
     eye: np.ndarray
     audience: Audience | None
+    field: ToneField | None
     width: int
     height: int
     view_cache: bool
@@ -79,7 +83,16 @@ class ViewCache:
         )
 
     def _shader_method(self) -> int:
-        """The shader METHOD for the next draw; advances the view cache when it is due.
+        """The shader METHOD for the next draw (:meth:`_view_method`), the adaptive tone
+        map's variant of it when a field is set and one eye is seen."""
+        method = self._view_method()
+        if self.field is None or self.audience is not None:
+            return method
+        return {_CACHED: _ADAPTIVE_CACHED, _METHODS["pixel"]: _ADAPTIVE}.get(method, method)
+
+    def _view_method(self) -> int:
+        """The shader METHOD of the global tone map for the next draw; advances the view
+        cache when it is due.
 
         The pixel method runs from the view cache (METHOD 3, ~0.7x the time on llvmpipe)
         when the eye (or the audience) is the one the cache was built for: an audience's

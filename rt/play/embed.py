@@ -98,6 +98,10 @@ class LiveRenderer(Presentation, TextureInput):
         ctx: the host's moderngl context (>= 3.3), current on this thread.
         method: ``"pixel"`` (default) or ``"paper"``.
         lam: the tone map's lambda (Eq. 22).
+        tone: how the tone map is chosen (``Compensation``'s ``tone``): ``"paper"`` (Eq.
+            21/22), ``"global"`` (one alpha, beta; the pixel method's default) or
+            ``"adaptive"`` (the smooth gain/offset field with the hue-keeping soft clip,
+            chosen per shot on the tone worker; pixel method, one eye); None: the method's.
         tone_tau: time constant (s) of the tone map's smoothing (None/0: none).
         eye_tau: time constant (s) of the eye's smoothing (0: moves are instant).
         angle: the start viewing angle (degrees) at the rig's viewer distance and height;
@@ -125,6 +129,7 @@ class LiveRenderer(Presentation, TextureInput):
         *,
         method: str = "pixel",
         lam: float = DEFAULT_LAMBDA,
+        tone: str | None = None,
         tone_tau: float | None = 0.5,
         eye_tau: float = 0.25,
         angle: float = 90.0,
@@ -145,7 +150,7 @@ class LiveRenderer(Presentation, TextureInput):
             start = tuple(cal.eye(angle=check_angle(angle)).tolist())
         self.cal = cal
         self.ctx = ctx
-        self.comp = Compensation(cal, method, lam, tau=tone_tau or None)
+        self.comp = Compensation(cal, method, lam, tau=tone_tau or None, tone=tone)
         self.eye_state = EyeState(v.distance, height, start, eye_tau)
         self.audience: Audience | None = None  # several viewers, or None: the smoothed eye
         self.tone_side = int(tone_side)
@@ -274,6 +279,7 @@ class LiveRenderer(Presentation, TextureInput):
             self.compensator.set_audience(aud)
             eye = aud.centre
         self.compensator.set_tone(params.alpha, params.beta)
+        self.compensator.set_field(params.field)  # the adaptive map's (None: alpha, beta)
         if isinstance(frame, Planes):
             self.compensator.upload_planes(frame)
         elif frame is not None:

@@ -24,6 +24,7 @@ class PlayerOptions:
 
     method: str = "pixel"
     lam: float = DEFAULT_LAMBDA
+    tone: str | None = None  # paper, global or adaptive (Compensation's tone); None: the method's
     tone_tau: float = 0.5
     eye_tau: float = 0.25
     angle: float = 90.0

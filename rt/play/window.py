@@ -171,6 +171,7 @@ class WindowLifecycle:
             self._ctx,
             method=o.method,
             lam=o.lam,
+            tone=o.tone,
             tone_tau=o.tone_tau,
             eye_tau=o.eye_tau,
             angle=o.angle,

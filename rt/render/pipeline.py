@@ -173,7 +173,7 @@ class _Engine:
                 )
             self.next_model = model
             self.alpha, self.beta = float(p.alpha), float(p.beta)
-            self.field = getattr(p, "field", None)  # the adaptive tone map (numpy only)
+            self.field = getattr(p, "field", None)  # the adaptive tone map, or None
         self.eye = _view(eye)
 
     def submit(self, frame: np.ndarray | Planes) -> None:
@@ -197,6 +197,7 @@ class _Engine:
         else:
             self.gl.set_eye(*self.eye)
         self.gl.set_tone(self.alpha, self.beta)
+        self.gl.set_field(self.field)
         if isinstance(frame, Planes):
             self.gl.upload_planes(frame)
         else:

@@ -205,6 +205,23 @@ def test_render_tone_choices(calib, tmp_path, capsys):
     bad = tmp_path / "bad.png"
     with pytest.raises(SystemExit) as exc:  # a usage error exits as argparse does
         main(["render", bundle, str(src), "-o", str(bad), "--angle", "60", "--tone", "adaptive",
-              "--quiet"])  # fmt: skip
+              "--method", "paper", "--quiet"])  # fmt: skip
     assert exc.value.code == 2
-    assert "--backend cpu" in capsys.readouterr().err and not bad.exists()
+    assert "--method pixel" in capsys.readouterr().err and not bad.exists()
+
+
+@pytest.mark.gl
+def test_render_adaptive_on_the_gl_backend(calib, tmp_path):
+    """The GL backend draws the same adaptive map as the numpy reference (the field chosen on
+    the CPU, the shader's soft clip): within a level or two."""
+    src = tmp_path / "in.png"
+    write_png(src, np.random.default_rng(2).integers(0, 256, (48, 96, 3), dtype=np.uint8))
+    outs = {}
+    for backend in ("cpu", "gl"):
+        out = tmp_path / f"{backend}.png"
+        assert main(["render", str(calib / "red.vcb"), str(src), "-o", str(out), "--angle", "60",
+                     "--tone", "adaptive", "--backend", backend, "--quiet"]) == 0  # fmt: skip
+        outs[backend] = read_image(out).astype(int)
+    d = np.abs(outs["gl"] - outs["cpu"])
+    assert d.max() <= 3 and np.mean(d > 1) <= 0.001
+    assert outs["gl"].std() > 5

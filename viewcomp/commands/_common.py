@@ -181,6 +181,32 @@ def add_tone_arguments(p: argparse.ArgumentParser, *, smooth: bool = True) -> No
         )
 
 
+def add_tone_choice(p: argparse.ArgumentParser, where: str = "") -> None:
+    """``--tone paper|global|adaptive`` (``args.tone``, None: the method's); ``where`` adds
+    what it means for this command to the help."""
+    p.add_argument(
+        "--tone",
+        choices=["paper", "global", "adaptive"],
+        default=None,
+        help="how the tone map is chosen: paper (Eq. 21/22), global (one alpha, beta of the "
+        "smallest predicted error: the pixel method's default) or adaptive (a smooth gain and "
+        "offset field with a hue-keeping soft clip into each pixel's reach; pixel method, one "
+        f"eye){where}",
+    )
+
+
+def check_tone(args: argparse.Namespace) -> None:
+    """``--tone`` against ``--method``: global and adaptive need the pixel method.
+
+    Raises:
+        UsageError: naming the option and the fix.
+    """
+    from viewcomp.calib.errors import UsageError
+
+    if args.tone in ("global", "adaptive") and args.method == "paper":
+        raise UsageError(f"--tone {args.tone} needs --method pixel (the paper's: --tone paper)")
+
+
 def add_simulator_arguments(
     p: argparse.ArgumentParser | argparse._ArgumentGroup,
     *,

@@ -9,6 +9,7 @@ from pathlib import Path
 from viewcomp.commands._common import (
     add_eye_arguments,
     add_tone_arguments,
+    add_tone_choice,
     finite,
     parse_vec3,
     positive,
@@ -41,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--tone-from", metavar="IMAGE", help="choose the tone map for this image (a typical frame)"
     )
+    add_tone_choice(p, "; adaptive: one field per export, for --tone-from, a fixed eye")
     p.add_argument("--alpha", type=positive, default=None, help="bake this tone-map alpha (> 0)")
     p.add_argument("--beta", type=finite, default=None, help="bake this tone-map beta")
     p.add_argument(
@@ -99,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
         tone=None if args.alpha is None else (args.alpha, args.beta),
         precision=args.precision,
         source=Path(args.calib).name,
+        tone_mode=args.tone,
     )
     if args.guard and Path(args.guard).resolve() in (
         Path(args.output).resolve(),

@@ -9,6 +9,8 @@ import sys
 from viewcomp.commands._common import (
     add_eye_arguments,
     add_tone_arguments,
+    add_tone_choice,
+    check_tone,
     nonnegative,
     parse_size,
     parse_vec3,
@@ -71,6 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the default; pixel method) or for the nearest one",
     )
     add_tone_arguments(p)
+    add_tone_choice(p, "; chosen per shot on the tone worker")
     p.add_argument(
         "--eye-smooth",
         type=float,
@@ -176,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if not args.calib or not args.videos:
             raise UsageError("give a calibration bundle and at least one video (or a folder)")
+        check_tone(args)
         osc = parse_host_port(args.osc) if args.osc else None
         eye = check_eye(tuple(parse_vec3(args.eye))) if args.eye else None
         angle = check_angle(args.angle)
@@ -198,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
         options = PlayerOptions(
             method=args.method,
             lam=DEFAULT_LAMBDA if args.lam is None else args.lam,
+            tone=args.tone,
             tone_tau=args.smooth,
             eye_tau=args.eye_smooth,
             angle=angle,

@@ -6,7 +6,14 @@ import argparse
 import os
 from pathlib import Path
 
-from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, finite, parse_vec3
+from viewcomp.commands._common import (
+    add_eye_arguments,
+    add_tone_arguments,
+    add_tone_choice,
+    check_tone,
+    finite,
+    parse_vec3,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,15 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_eye_arguments(p, required=True, track=True, audience=True)
     add_tone_arguments(p)
-    p.add_argument(
-        "--tone",
-        choices=["paper", "global", "adaptive"],
-        default=None,
-        help="how the tone map is chosen: paper (Eq. 21/22), global (one alpha, beta of the "
-        "smallest predicted error: the pixel method's default) or adaptive (a smooth gain and "
-        "offset field with a hue-keeping soft clip into each pixel's reach; pixel method, one "
-        "eye, --backend cpu)",
-    )
+    add_tone_choice(p)
     p.add_argument(
         "--backend",
         choices=["gl", "cpu"],
@@ -136,7 +135,6 @@ def _check_args(args: argparse.Namespace) -> None:
     """Before any work: the input usable, the eye within the limits, the output never an
     input, its extension, codec and profile working together (the grid's size is checked
     once the calibration is loaded, still before the input is decoded)."""
-    from viewcomp.calib.errors import UsageError
     from viewcomp.calib.io.paths import check_input_file
     from viewcomp.calib.world.eye import check_angle, check_eye
     from viewcomp.commands._common import check_output_file, check_output_folder
@@ -144,12 +142,7 @@ def _check_args(args: argparse.Namespace) -> None:
     from viewcomp.rt.render.pipeline import is_image
 
     check_input_file(args.input, "input", "an image or a video file")
-    if args.tone == "adaptive" and args.backend != "cpu":
-        raise UsageError("--tone adaptive runs on --backend cpu only (not yet in the shader)")
-    if args.tone == "adaptive" and args.method != "pixel":
-        raise UsageError("--tone adaptive needs --method pixel")
-    if args.tone in ("global", "adaptive") and args.method == "paper":
-        raise UsageError(f"--tone {args.tone} needs --method pixel (the paper's: --tone paper)")
+    check_tone(args)
     if args.angle is not None:
         check_angle(args.angle, "--angle")
     if args.eye:
