@@ -23,8 +23,10 @@ B + (L' - B) / r. r_k is per camera channel: it holds whatever the projector's p
 white segment and their mixing in the camera do, as long as the screen's reflectance scales
 each camera channel alone (a diagonal reflectance, as the simulator's).
 
-Patterns of many levels (the ramp) are not dimmed: the ratio depends on each pixel's level,
-which the capture does not know yet (no camera -> projector map before the Gray code).
+A pattern of many levels (the ramp, the phase-shifted fringes) is dimmed too, by the mean
+ratio of its own unclipped pixels: each level dims by its own ratio (the response is not a
+power law) and the capture does not know a camera pixel's level yet (no camera -> projector map
+before the Gray code), so what it recovers there is approximate (docs/INTERFACES.md, HDR).
 """
 
 from __future__ import annotations
@@ -163,6 +165,13 @@ class Dimmer:
         #: (drive triple, dimmed stop) -> (ratio (3,), pixels that measured it (3,))
         self.known: dict[tuple[tuple[int, ...], int], tuple[np.ndarray, np.ndarray]] = {}
         self._told_many_levels = False
+
+    def summary(self) -> str:
+        """What the dimmed stops did in the capture, for its log."""
+        return (
+            f"HDR: {self.dimmed} capture(s) clipped in the shortest stop were taken again with "
+            f"the projector dimmed ({self.recovered} pixel-channels recovered)"
+        )
 
     def _ratio(
         self, key: tuple[tuple[int, ...], int], ratio: np.ndarray, counts: np.ndarray
