@@ -47,8 +47,10 @@ Log = Callable[[str], None]
 DRIVE_STEP = 0.5
 #: Dimmed stops at most per capture.
 MAX_DIMS = 3
-#: Encoded value (0..1) a dimmed frame's pixel needs to measure the ratio: well above noise.
-RATIO_CODE = 16.0 / 255.0
+#: Encoded values (0..1) a dimmed frame's pixel needs to measure the ratio, tried in turn
+#: until enough pixels pass: well above an 8-bit camera's noise, then what a dark screen in a
+#: 12-bit camera's one-period stop leaves (a dimmed diffuse part at a few % of full scale).
+RATIO_CODES = (16.0 / 255.0, 4.0 / 255.0)
 #: Pixels of a camera channel that must measure the ratio.
 MIN_RATIO_PIXELS = 20
 #: Pixels next to a clipped one (camera px) left out of the ratio: a webcam's sharpening and
@@ -86,7 +88,7 @@ def measured_ratio(
         clipped: (H, W, 3) bool its clipped pixel-channels (not used, nor their neighbours).
         dim_lin: (H, W, 3) float32 the dimmed capture's linear light in the same units.
         dim_codes: (H, W, 3) float the dimmed frame's encoded values 0..1 (well exposed:
-            :data:`RATIO_CODE` .. CLIP_CODE).
+            one of :data:`RATIO_CODES` .. CLIP_CODE).
         black: (H, W, 3) float32 the black capture in the same units, or None (0).
     """
     b = 0.0 if black is None else black.astype(np.float64)
@@ -97,13 +99,12 @@ def measured_ratio(
     out = np.full(3, np.nan)
     counts = np.zeros(3, np.int64)
     for k in range(lin.shape[2]):
-        good = (
-            ~near_clip
-            & (dim_codes[..., k] >= RATIO_CODE)
-            & (dim_codes[..., k] < CLIP_CODE)
-            & (above[..., k] > 0)
-        )
-        n = int(np.count_nonzero(good))
+        usable = ~near_clip & (dim_codes[..., k] < CLIP_CODE) & (above[..., k] > 0)
+        for low in RATIO_CODES:
+            good = usable & (dim_codes[..., k] >= low)
+            n = int(np.count_nonzero(good))
+            if n >= MIN_RATIO_PIXELS:
+                break
         if n < MIN_RATIO_PIXELS:
             continue
         den = float(above[..., k][good].sum())
