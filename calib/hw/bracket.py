@@ -20,8 +20,10 @@ Two shapes of bracket (:func:`plan_bracket`):
   others are 4, 16, ... times it (the asked stops' ratios, read upward) for the dark parts, up
   to :data:`UPWARD_SPAN` times the short stop and within the camera's exposure and gain ranges.
 
-The projector's intensity is not scaled instead: scaled codes change light by the projector's
-response (not known to the capture, and not a power law on a DLP), not by the scale. A stop
+The projector's intensity is not scaled for the bracket's stops: scaled codes change light by
+the projector's response (not known to the capture, and not a power law on a DLP), not by the
+scale. Only what the shortest stop clips is taken again with the pattern dimmed, at a light
+ratio measured in the capture itself (:mod:`~viewcomp.calib.hw.dimming`). A stop
 longer than the base exposure takes proportionally fewer frames (at least one): the same
 exposure time per stop, so a 16-period stop does not multiply the capture's time by 16, and
 its noise, averaged over as much light, is no worse than the base's.
@@ -258,6 +260,22 @@ class Bracket:
                 r.astype(np.uint16) * np.uint16(257) if r.dtype == np.uint8 else r for r in raws
             ]
         return raws, rels, linear
+
+    def shortest(self, frames: int, not_before: float, what: str) -> tuple[np.ndarray, float]:
+        """The mean of ``frames`` frames at the bracket's least light (its first stop upward,
+        its last downward) from ``not_before`` on: ((H, W, 3) uint8/uint16 codes, its relative
+        exposure as read back). The base exposure and gain are restored after."""
+        stop = min(self.plan, key=lambda s: s.rel)
+        try:
+            exposure = self._set("exposure", stop.exposure)
+            gain = self._set("gain", stop.gain) if self.has_gain else 1.0
+            start = max(not_before, self.clock.now())
+            got = self.reader.frames(frames, start, exposure, gain if self.has_gain else None, what)
+        finally:
+            self._set("exposure", self.base)
+            if self.has_gain:
+                self._set("gain", self.base_gain)
+        return average_frames(got), exposure * gain / (self.base * self.base_gain)
 
     def _report(self, rels: list[float], frames: int) -> None:
         """Log the bracket's stops (as read back) and what was left out, once."""

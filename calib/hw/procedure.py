@@ -217,6 +217,8 @@ def run_capture(
     prepare = (exposure == "auto", hdr_stops, hdr_stops is not None and response == "estimate")
     captured, rig = _take_plan(plan, session, prompt, progress, rig, prepare)
     projector.show(np.zeros((h, w, 3), np.uint8))
+    if session.dimmer is not None and session.dimmer.dimmed:
+        log(session.dimmer.summary())
     if session.bracket is not None and response == "estimate":
         response = None  # estimated from the brackets, not from the Gray code
     return _finish_set(

@@ -1,6 +1,7 @@
 """One capture session's devices and timing: the set-up at the first screen (latency, exposure
 search, HDR bracket and its response) and :meth:`Session.take`, one checked-to-be-fresh capture
-of a pattern."""
+of a pattern (with a bracket, what its shortest stop clips taken again with the pattern
+dimmed: :mod:`~viewcomp.calib.hw.dimming`)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 
 from viewcomp.calib.hw.autoexposure import search_exposure
 from viewcomp.calib.hw.bracket import Bracket
+from viewcomp.calib.hw.dimming import Dimmer
 from viewcomp.calib.hw.hdrresponse import debevec_curve, fit_response
 from viewcomp.calib.hw.interface import Camera, Clock, DeviceError, Projector
 from viewcomp.calib.hw.latency import MAX_LATENCY, measure_latency
@@ -43,6 +45,9 @@ class Session:
         self.settle = settle
         self.latency = MAX_LATENCY
         self.bracket: Bracket | None = None
+        self.dimmer: Dimmer | None = None
+        #: the latest capture of black (with a bracket: merged linear), the dimmer's black level
+        self.black: np.ndarray | None = None
 
     def prepare(
         self,
@@ -80,6 +85,8 @@ class Session:
             self.log,
             self.projector.refresh_hz,
         )
+        bracket = self.bracket
+        self.dimmer = Dimmer(self._show, bracket.shortest, lambda: bracket.response, self.log)
         if not estimate_response:
             return None
         estimated = self._estimate_response()
@@ -110,10 +117,14 @@ class Session:
         )
         return found
 
+    def _show(self, pattern: np.ndarray) -> float:
+        """Show ``pattern``; returns the clock time from which frames show it."""
+        return self.projector.show(pattern) + self.latency + self.settle
+
     def take(self, pattern: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray | None]:
         """Show ``pattern`` and capture it: (encoded codes, None), or with a bracket (merged
-        float32 linear, pixel-channels clipped in every frame)."""
-        not_before = self.projector.show(pattern) + self.latency + self.settle
+        float32 linear, pixel-channels clipped in every frame and in its dimmed stops)."""
+        not_before = self._show(pattern)
         if self.bracket is None:
             cam = self.camera
             have = cam.controls()
@@ -123,4 +134,9 @@ class Session:
             exp = cam.get("exposure") if "exposure" in have and not auto else None
             gain = cam.get("gain") if "gain" in have and not auto else None
             return self.reader.average(self.frames, not_before, exp, gain, what), None
-        return self.bracket.grab(self.frames, not_before, what)
+        merged = self.bracket.grab(self.frames, not_before, what)
+        if not pattern.any():
+            self.black = merged[0]
+        if self.dimmer is not None:
+            merged = self.dimmer.recover(pattern, merged, self.black, self.frames, what)
+        return merged

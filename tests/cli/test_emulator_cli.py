@@ -70,3 +70,22 @@ def test_hdr_on_a_camera_whose_white_needs_a_period_or_two_is_bracketed_upward(
     assert "HDR bracket: taken upward" in err, err
     assert (out / "screen" / "graycode_00.npy").is_file()
     assert (out / "white" / "gray.npy").is_file()
+
+
+@pytest.mark.slow
+def test_a_highlight_one_refresh_period_clips_is_taken_with_the_projector_dimmed(
+    tmp_path: Path, capsys, materials_dir: Path
+) -> None:
+    """mono12 on green plastic: its highlight clipped even in the one-period stop at gain 1
+    (1.7 % of the lit pixels, refused before); the clipped captures are taken again with the
+    pattern dimmed and the set is written and calibrates."""
+    out = tmp_path / "c"
+    material = str(materials_dir / "green-plastic.npz")
+    argv = ["capture", str(out), "--emulate", "mono12", "--material", material]
+    argv += ["--sim-size", "160x80", "--frames", "2", "--seed", "0", "--yes", "--hdr"]
+    assert main(argv) == 0, capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the projector's drive dimmed" in err, err
+    assert "clipped pixel-channels recovered" in err
+    assert "were taken again with the projector dimmed" in err
+    assert main(["calibrate", str(out), "-o", str(tmp_path / "b.npz")]) == 0
