@@ -166,10 +166,12 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
     capture = SimulatedCapture(plan, FPS, buffers)
     pipeline = Pipeline(simulated_source(capture), walk_camera(), default_options(cal.rig))
     published: list[tuple[int, float, np.ndarray]] = []  # frame index, done, eye
-    step = pipeline.step
+    step, step_ms = pipeline.step, []
 
     def recorded(frame):  # type: ignore[no-untyped-def]
+        t0 = time.perf_counter()
         res = step(frame)
+        step_ms.append(1e3 * (time.perf_counter() - t0))
         if res.sent and len(res.eyes):
             published.append((index_of(frame.image), res.done, np.round(res.eyes[0], 4)))
         return res
@@ -177,6 +179,15 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
     pipeline.step = recorded  # type: ignore[method-assign]
     assert pipeline.yunet is not None
     pipeline.yunet.detect(plan[0])  # the network's first run sets it up (slow, once)
+    detect, detect_ms = pipeline.yunet.detect, []
+
+    def timed_detect(image: np.ndarray):  # type: ignore[no-untyped-def]
+        t0 = time.perf_counter()
+        out = detect(image)
+        detect_ms.append(1e3 * (time.perf_counter() - t0))
+        return out
+
+    pipeline.yunet.detect = timed_detect  # type: ignore[method-assign]
     tracker = TrackerThread(pipeline, all_faces=True)
     drawn: list[tuple[float, np.ndarray]] = []
 
@@ -217,6 +228,8 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
         "captures_dropped_by_driver": capture.dropped,
         "frames_skipped_by_reader": pipeline.source.dropped,  # type: ignore[union-attr]
         "tracker_ms_per_frame": round(1e3 * pipeline.stats.seconds / max(n, 1), 1),
+        "detect_ms_median": round(float(np.median(detect_ms)), 1) if detect_ms else None,
+        "step_ms_median": round(float(np.median(step_ms)), 1) if step_ms else None,
     }
 
 
@@ -228,7 +241,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--buffers", type=int, default=4, help="driver buffers (default 4)")
     ap.add_argument("--rounds", type=int, default=2, help="runs over the same scene")
     ap.add_argument("--no-spin", action="store_true", help="leave every core to the run")
+    ap.add_argument(
+        "--cv-threads", type=int, default=None, help="cv2.setNumThreads (default: OpenCV's)"
+    )
     args = ap.parse_args(argv)
+    if args.cv_threads is not None:
+        import cv2
+
+        cv2.setNumThreads(args.cv_threads)
     if not xvfb_available():
         print("bench_track_player: Xvfb is not installed (Debian package xvfb)", file=sys.stderr)
         return 2
@@ -253,6 +273,7 @@ def main(argv: list[str] | None = None) -> int:
         "load_average": [round(v, 2) for v in os.getloadavg()],
         "core_busy": not args.no_spin,
         "camera": {"resolution": [1280, 720], "fps": FPS, "buffers": args.buffers},
+        "cv_threads": args.cv_threads,
         "scene": {"appear": args.appear, "gap_s": args.gap, "stay_s": args.stay},
         "rounds": rounds,
     }
