@@ -226,7 +226,7 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
         "published": len(published),
         "frames_read": pipeline.stats.frames,
         "captures_dropped_by_driver": capture.dropped,
-        "frames_skipped_by_reader": pipeline.source.dropped,  # type: ignore[union-attr]
+        "frames_skipped_by_reader": getattr(pipeline.source, "dropped", None),
         "tracker_ms_per_frame": round(1e3 * pipeline.stats.seconds / max(n, 1), 1),
         "detect_ms_median": round(float(np.median(detect_ms)), 1) if detect_ms else None,
         "step_ms_median": round(float(np.median(step_ms)), 1) if step_ms else None,
