@@ -226,3 +226,36 @@ def test_readme_track_pipe_into_play_runs(bundle: Path, tmp_path: Path):
     assert status, r.stdout[-1000:] + r.stderr[-1000:]
     eye = np.array([float(v) for v in status[-1].split(" eye=")[1].split()[0].split(",")])
     assert _close(eye[None], TRUTH[:1])[0], (status[-1], TRUTH[0])
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_play_track_camera_with_a_tracker_file(bundle: Path, tmp_path: Path):
+    """`viewcomp play screen.vcb clip.mp4 --track-camera SRC --tracker webcam.toml --ipd M`:
+    frames of a webcam moved away from the bundle's, given by the file alone; the player's
+    last status (stdin `status` every second for 8 s) has the eye where the face was drawn."""
+    from tests.support.synthetic import make_test_video
+    from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
+
+    if not xvfb_available():
+        pytest.skip("Xvfb is not installed (Debian package xvfb)")
+    _frames(tmp_path / "frames", _moved(), TRUTH[1:2], repeat=5)  # frames/0
+    (tmp_path / "webcam.toml").write_text(
+        "[tracker]\nresolution = [1280, 720]\nposition = [0.4, 0.3, 0.03]\n"
+        "look_at = [0.0, 0.05, 1.8]\nup = [0.0, 1.0, 0.0]\nfov_y = 45.0\n"
+    )
+    make_test_video(str(tmp_path / "clip.mp4"), 128, 64, seconds=6.0, rate=30, audio=False)
+    shutil.copy(bundle, tmp_path / "screen.vcb")
+    cmd = (
+        "(for i in 1 2 3 4 5 6 7 8; do sleep 1; echo status; done) | "
+        f"{VIEWCOMP} play screen.vcb clip.mp4 --track-camera frames/0 --tracker webcam.toml "
+        "--ipd 0.063 --windowed --no-audio --loop --seconds 10 --eye-smooth 0"
+    )
+    with Xvfb((640, 360)):
+        r = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=120, env=dict(os.environ))  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    status = [ln for ln in r.stdout.splitlines() if ln.startswith("status ")]
+    assert status, r.stdout[-1000:] + r.stderr[-1000:]
+    eye = np.array([float(v) for v in status[-1].split(" eye=")[1].split()[0].split(",")])
+    assert _close(eye[None], TRUTH[1:2])[0], (status[-1], TRUTH[1])
