@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from concurrent.futures import Future, ThreadPoolExecutor
 
+import cv2
 import numpy as np
 
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
@@ -58,8 +59,10 @@ class LiveFaces:
         self.full_searches = 0
 
     def detect(self, image: np.ndarray) -> Faces:
-        """The faces in ``image`` ((h, w, 3) uint8 BGR), strongest first among the near ones,
+        """The faces in ``image`` ((h, w, 3) uint8 BGR or (h, w) grey), the near ones first,
         then the followed far ones."""
+        if image.ndim == 2:  # grey: the crops are searched as colour frames are
+            image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         faces = self.frame_detector.detect(image, self.scale)
         if self._pending is not None and self._pending.done():
             found = self._pending.result()

@@ -62,3 +62,19 @@ def test_an_empty_frame_has_no_faces_and_close_ends_the_worker():
     assert len(live.detect(_frame([]))) == 0
     live.close()
     assert live._pool._shutdown  # type: ignore[attr-defined]
+
+
+def test_a_grey_frame_is_searched_as_a_colour_one():
+    import cv2
+
+    frame = _frame([eye_from_angle(95, 1.3, 0.15)])
+    live = LiveFaces()
+    try:
+        grey = live.detect(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+        colour = live.detect(frame)
+        assert len(grey) == len(colour) == 1  # found; YuNet reads colour too, so not equal:
+        g, c = grey.landmarks[0, :2], colour.landmarks[0, :2]
+        np.testing.assert_allclose(g, c, atol=4.0)
+        assert abs(np.linalg.norm(g[1] - g[0]) / np.linalg.norm(c[1] - c[0]) - 1) < 0.05
+    finally:
+        live.close()
