@@ -68,6 +68,7 @@ from viewcomp.calib.io.checks import check_captures
 from viewcomp.calib.io.imageio import CaptureError
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import CaptureSpec, Rig, default_rig, rig_to_toml
+from viewcomp.calib.world.tracker import with_default_tracker
 
 Prompt = Callable[[str, str], bool]
 Log = Callable[[str], None]
@@ -89,7 +90,9 @@ COMPLETE_HEADER = """\
 # projector's and the camera's position, look_at and fov_y (metres, degrees; the world frame of
 # docs/MODEL.md of viewcomp: the screen is z = 0, +y up, +z toward the audience) and the
 # camera's response, then run `viewcomp calibrate`. The lens distortion is estimated by
-# calibrate.
+# calibrate. [tracker] is a guess too (a 90-degree 720p webcam on the picture's top edge):
+# measure the webcam that follows the audience (docs/INTERFACES.md, rig.toml) before
+# `viewcomp track` or `viewcomp play --track-camera`, or give it there with --tracker.
 """
 
 
@@ -98,8 +101,10 @@ def capture_rig(
 ) -> tuple[Rig, bool]:
     """The rig.toml of the new set: the template's (or the example rig's) geometry with the
     devices' resolutions and ``space = "camera"``. Returns it and whether the user must still
-    complete it (no template given)."""
-    base = template if template is not None else default_rig()
+    complete it (no template given). A template without ``[tracker]`` gets the default
+    webcam on the picture's top edge (:func:`viewcomp.calib.world.tracker.default_tracker`),
+    to be measured and corrected for the kiosk's own."""
+    base = with_default_tracker(template if template is not None else default_rig())
     rig = replace(
         base,
         projector=replace(base.projector, resolution=projector, principal_point=None)

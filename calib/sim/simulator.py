@@ -51,6 +51,7 @@ from viewcomp.calib.sim.materials import (
 from viewcomp.calib.world.geometry import ScreenGeometry, irradiance_falloff
 from viewcomp.calib.world.response import Response, parse_response
 from viewcomp.calib.world.rig import Rig, default_rig
+from viewcomp.calib.world.tracker import with_default_tracker
 
 # Diffuse albedo per camera channel of the named screens.
 SCREEN_COLOURS: dict[str, tuple[float, float, float]] = {
@@ -534,6 +535,10 @@ SIM_PROJECTOR_FOV = 16.0
 
 
 def simulation_rig() -> Rig:
-    """The rig of the simulated world: docs/INTERFACES.md's example with a 16-degree projector."""
+    """The rig of the simulated world: docs/INTERFACES.md's example with a 16-degree projector
+    and, as ``[tracker]``, a webcam on the picture's top edge looking at the audience
+    (:func:`viewcomp.calib.world.tracker.default_tracker`), so ``viewcomp track`` runs on it."""
     rig = default_rig()
-    return replace(rig, projector=replace(rig.projector, fov_y=SIM_PROJECTOR_FOV))
+    return with_default_tracker(
+        replace(rig, projector=replace(rig.projector, fov_y=SIM_PROJECTOR_FOV))
+    )

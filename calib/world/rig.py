@@ -451,6 +451,15 @@ def rig_from_dict(d: dict[str, Any], source: str = "rig.toml") -> Rig:
     return _Parser(source).rig(d)
 
 
+def tracker_from_dict(t: Any, source: str) -> tuple[Device, float | None]:
+    """A ``[tracker]`` table alone (``--tracker FILE.toml``): the camera and its ``ipd`` (m)
+    or None, by the rules of rig.toml's section. Raises :class:`RigError` naming ``source``."""
+    parser = _Parser(source)
+    device = parser.tracker(t)
+    assert device is not None  # t is a table here
+    return device, parser.tracker_ipd(t)
+
+
 def load_rig(path: str | Path) -> Rig:
     """Read and validate a rig.toml file. Raises :class:`RigError` naming the file."""
     p = Path(path)
@@ -539,7 +548,8 @@ def rig_to_toml(rig: Rig) -> str:
                 text = f"{text:<40} # {units[f.name]}"
             lines.append(text)
     if rig.tracker is not None:
-        lines += ["", f"[{TRACKER_SECTION}]", *_tracker_lines(rig.tracker)]
+        header = f"{'[' + TRACKER_SECTION + ']':<40} # the webcam that follows the audience"
+        lines += ["", header, *_tracker_lines(rig.tracker)]
         if rig.tracker_ipd is not None:
             lines.append(f"ipd = {_toml_value(float(rig.tracker_ipd))}")
     return "\n".join(lines) + "\n"
@@ -567,7 +577,8 @@ def tracking_camera(rig: Rig) -> Device:
         raise RigError(
             f"the tracking camera {which} looks toward the screen (look_at - position has no "
             "+z part), so it cannot see the audience; add a [tracker] section with the webcam "
-            "that faces the viewers (docs/INTERFACES.md, rig.toml)"
+            "that faces the viewers, or give one with --tracker FILE.toml (docs/INTERFACES.md, "
+            "rig.toml)"
         )
     return device
 

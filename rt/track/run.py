@@ -22,6 +22,7 @@ import numpy as np
 from viewcomp.calib.world.rig import Device, Rig, tracking_camera
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH, head_pose
 from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
+from viewcomp.rt.track.live_faces import LiveFaces
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
 from viewcomp.rt.track.publish import Publisher
 from viewcomp.rt.track.scale import FaceTemplate, ScaleConfig
@@ -48,7 +49,9 @@ class TrackOptions:
     ``templates``: size tracked faces by their own near view (:mod:`viewcomp.rt.track.scale`)
     rather than by the cascade's box alone; ``background_search``: run the periodic
     full-frame search on a worker thread (None: for a live camera and ``realtime``; a file
-    processed as fast as possible stays on one thread, so its output is reproducible).
+    processed as fast as possible stays on one thread, so its output is reproducible); with
+    YuNet, a live search also looks at each frame at half resolution and follows the faces
+    it found in crops (:mod:`viewcomp.rt.track.live_faces`).
     """
 
     detector_kind: str = "yunet"
@@ -120,11 +123,16 @@ class Pipeline:
         self.stats = Stats()
         self._pool: ThreadPoolExecutor | None = None
         self._pending: Future[np.ndarray] | None = None
-        self.yunet: YuNetDetector | None = None
+        self.yunet: YuNetDetector | LiveFaces | None = None
+        # Live: the full-frame search (newcomers) runs on a worker thread, so no frame waits
+        # for it; a file processed as fast as possible stays on one thread (reproducible).
+        background = options.background_search
+        if background is None:
+            background = bool(getattr(source, "live", False)) or options.realtime
         if options.detector_kind == "yunet":
             if not options.ipd > 0:
                 raise ValueError(f"the interpupillary distance must be > 0 m, got {options.ipd}")
-            self.yunet = YuNetDetector(options.yunet)
+            self.yunet = LiveFaces(options.yunet) if background else YuNetDetector(options.yunet)
             log.info("face detector: YuNet (%s), distance from the eyes at IPD %.1f mm",
                      self.yunet.path.name, 1000 * options.ipd)  # fmt: skip
             return
@@ -136,11 +144,6 @@ class Pipeline:
         lo, hi = size_range(self.device.focal(), options.face_width, options.near, options.far)
         config = replace(options.detector or DetectorConfig(), min_px=lo, max_px=hi)
         self.detector = FaceDetector(config)
-        # Live: the periodic full-frame search (newcomers, while faces are tracked) runs on
-        # a worker thread with a detector of its own, so no frame waits for it.
-        background = options.background_search
-        if background is None:
-            background = bool(getattr(source, "live", False)) or options.realtime
         self._since_full = 0  # frames since the last background search started
         if background:
             self._background = FaceDetector(replace(config))
@@ -253,6 +256,8 @@ class Pipeline:
         """Release the source, the search thread and the publishers."""
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
+        if isinstance(self.yunet, LiveFaces):
+            self.yunet.close()
         self.source.close()
         for p in self.publishers:
             p.close()

@@ -9,14 +9,21 @@
 
 Every :class:`Frame` carries its time ``t`` (seconds: the capture clock for a device, the
 media time for a file or a sequence, so a recorded run gives the same result however fast it
-is processed) and ``captured``, the ``time.monotonic()`` when the frame was handed over
-(where the tracker's latency starts). With ``realtime`` a file or sequence is paced at its
-frame rate, as a camera would deliver it.
+is processed) and ``captured``, the ``time.monotonic()`` when the frame was read from the
+device or file (where the tracker's latency starts). With ``realtime`` a file or sequence is
+paced at its frame rate, as a camera would deliver it.
+
+A device is read by a thread of its own (:class:`NewestFrame`) that keeps only the newest
+frame: a tracker slower than the camera gets the latest picture, never one that waited in
+the driver's queue (OpenCV asks V4L2 for one buffer, but not every driver honours it; with
+four, a busy reader would see every face up to four frames late). The frames skipped are
+counted in :attr:`FrameSource.dropped`.
 """
 
 from __future__ import annotations
 
 import glob
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -48,6 +55,52 @@ def _hint() -> str:
     )
 
 
+class NewestFrame:
+    """A thread reading ``capture`` (a ``cv2.VideoCapture`` or anything with ``read()``) as
+    fast as it delivers, keeping only the newest frame; :meth:`take` waits for a frame newer
+    than the last one taken. ``dropped`` counts frames replaced before they were taken."""
+
+    def __init__(self, capture: object) -> None:
+        self.capture = capture
+        self.dropped = 0
+        self._latest: tuple[np.ndarray, float] | None = None
+        self._ended = False
+        self._stop = threading.Event()
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._run, name="viewcomp-camera", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            ok, raw = self.capture.read()  # type: ignore[attr-defined]
+            now = time.monotonic()
+            with self._cond:
+                if not ok or raw is None:
+                    self._ended = True
+                else:
+                    self.dropped += self._latest is not None
+                    self._latest = (raw, now)
+                self._cond.notify_all()
+            if self._ended:
+                return
+
+    def take(self) -> tuple[np.ndarray, float] | None:
+        """The newest frame and the time.monotonic() it was read; None once the device has
+        ended (or :meth:`stop` was called)."""
+        with self._cond:
+            while self._latest is None and not self._ended and not self._stop.is_set():
+                self._cond.wait(0.1)
+            item, self._latest = self._latest, None
+        return item
+
+    def stop(self) -> None:
+        """End the thread (it finishes the read in progress: at most a frame period)."""
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        self._thread.join(timeout=2.0)
+
+
 class FrameSource:
     """Frames from ``src`` (see the module's description); iterate, then :meth:`close`.
 
@@ -71,6 +124,7 @@ class FrameSource:
         self._cap: cv2.VideoCapture | None = None
         self._files: list[Path] = []
         self._first: np.ndarray | None = None
+        self._reader: NewestFrame | None = None
         text = self.src.strip()
         self.live = text.isdigit()
         if self.live:
@@ -141,7 +195,26 @@ class FrameSource:
             raise SourceError(f"{path}: not an image OpenCV can read; {_hint()}")
         return _as_bgr(image)
 
+    def _live(self) -> Iterator[Frame]:
+        """A device's frames, the newest each time (:class:`NewestFrame`)."""
+        assert self._cap is not None
+        self._reader = NewestFrame(self._cap)
+        start = time.monotonic()
+        index = 0
+        while (item := self._reader.take()) is not None:
+            image, read_at = item
+            yield Frame(_as_bgr(image), read_at - start, index, read_at)
+            index += 1
+
+    @property
+    def dropped(self) -> int:
+        """Frames of a device skipped because a newer one came before they were taken."""
+        return self._reader.dropped if self._reader is not None else 0
+
     def __iter__(self) -> Iterator[Frame]:
+        if self.live:
+            yield from self._live()
+            return
         start = time.monotonic()
         index = 0
         pending = self._first
@@ -163,16 +236,17 @@ class FrameSource:
             else:
                 return
             t_media = index / self.fps
-            if self.realtime and not self.live:
+            if self.realtime:
                 delay = start + t_media - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-            now = time.monotonic()
-            yield Frame(image, (now - start) if self.live else t_media, index, now)
+            yield Frame(image, t_media, index, time.monotonic())
             index += 1
 
     def close(self) -> None:
-        """Release the camera or file."""
+        """Stop reading and release the camera or file."""
+        if self._reader is not None:
+            self._reader.stop()
         if self._cap is not None:
             self._cap.release()
             self._cap = None

@@ -166,9 +166,24 @@ def test_without_a_rig_the_rig_toml_is_to_complete(tmp_path: Path) -> None:
         clock=dev.clock,
     )
     text = (tmp_path / "caps" / "rig.toml").read_text()
-    assert text.startswith("# TO COMPLETE")
+    assert text.startswith("# TO COMPLETE") and "[tracker] is a guess too" in text
     rig = load_rig(tmp_path / "caps" / "rig.toml")
     assert rig.projector.resolution == SIZE and rig.capture.space == "camera"
+    # a webcam above the picture, facing the audience, so `viewcomp track` runs on the set
+    assert rig.tracker is not None and rig.tracker.resolution == (1280, 720)
+    assert rig.tracker.pose()[0][2, 2] > 0.9 and rig.tracker.position[1] > 0.05
+
+
+def test_a_template_without_tracker_gets_one_and_one_with_keeps_it() -> None:
+    from viewcomp.calib.hw.procedure import capture_rig
+    from viewcomp.calib.world.rig import Device
+
+    base = replace(simulation_rig(), tracker=None)
+    rig, incomplete = capture_rig(base, SIZE, (320, 180))
+    assert not incomplete and rig.tracker is not None and rig.tracker.pose()[0][2, 2] > 0.9
+    own = Device(resolution=(640, 480), position=(0.3, 0.4, 0.02), look_at=(0.0, 0.0, 2.0),
+                 up=(0.0, 1.0, 0.0), fov_y=40.0)  # fmt: skip
+    assert capture_rig(replace(base, tracker=own), SIZE, (320, 180))[0].tracker == own
 
 
 def test_cli_usage_errors(capsys) -> None:

@@ -15,6 +15,7 @@ from viewcomp.commands._common import (
     parse_size,
     parse_vec3,
 )
+from viewcomp.commands.track import add_tracking_camera_arguments, checked_ipd
 
 EPILOG = """\
 live angle input and show control:
@@ -72,6 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="with --track-camera: compensate for every face seen at once (all, "
         "the default; pixel method) or for the nearest one",
     )
+    add_tracking_camera_arguments(p.add_argument_group("tracking camera (--track-camera)"))
     add_tone_arguments(p)
     add_tone_choice(p, "; chosen per shot on the tone worker")
     p.add_argument(
@@ -135,15 +137,32 @@ def _stdin_fd() -> int | None:
         return None
 
 
-def _tracker(src: str | None, rig: object, all_faces: bool) -> tuple[object, ...]:
-    """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early)."""
-    if not src:
+def _tracker(args: argparse.Namespace, rig: object, all_faces: bool) -> tuple[object, ...]:
+    """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early): the
+    bundle's tracking camera or ``--tracker``'s, ``--detector`` and ``--ipd`` as for
+    ``viewcomp track``, its other options at their defaults."""
+    from viewcomp.calib.errors import UsageError
+
+    if not args.track_camera:
+        if args.tracker:
+            raise UsageError(
+                f"--tracker {args.tracker} describes the camera of --track-camera; give "
+                "--track-camera SRC too"
+            )
         return ()
+    from dataclasses import replace
+
+    from viewcomp.calib.world.tracker import with_tracker_file
     from viewcomp.rt.track.run import TrackerThread, build, default_options
 
-    options = default_options(rig)  # type: ignore[arg-type]
-    options.realtime = True  # a video or an image sequence is paced as a camera would be
-    pipeline = build(src, rig, options)  # type: ignore[arg-type]
+    rig = with_tracker_file(rig, args.tracker)  # type: ignore[arg-type]
+    options = replace(
+        default_options(rig),
+        detector_kind=args.detector,
+        ipd=checked_ipd(args, rig),
+        realtime=True,  # a video or an image sequence is paced as a camera would be
+    )
+    pipeline = build(args.track_camera, rig, options)
     return (TrackerThread(pipeline, all_faces),)
 
 
@@ -225,9 +244,7 @@ def run(args: argparse.Namespace) -> int:
             osc_feedback=feedback,
             feedback_every=args.feedback_every,
             audience=audience,
-            inputs=_tracker(
-                args.track_camera, cal.rig, args.track_faces == "all" and args.method == "pixel"
-            ),
+            inputs=_tracker(args, cal.rig, args.track_faces == "all" and args.method == "pixel"),
         )
         stats = Player(cal, args.videos, options).run()
     except PlayerError as exc:

@@ -24,9 +24,15 @@ def positive(text: str) -> float:
     return v
 
 
-def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
-    """The tracking options shared with ``play --track-camera``: face model, timing, filter."""
-    g = p.add_argument_group("tracking")
+def add_tracking_camera_arguments(g: argparse._ArgumentGroup) -> None:
+    """The options ``track`` shares with ``play --track-camera``: the tracking camera, the
+    face model and the interpupillary distance."""
+    g.add_argument(
+        "--tracker",
+        metavar="FILE.toml",
+        help="the tracking camera from the [tracker] table of FILE.toml instead of the "
+        "rig's (add or move a webcam without recalibrating)",
+    )
     g.add_argument(
         "--detector",
         choices=["yunet", "cascade"],
@@ -42,6 +48,13 @@ def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
         help="viewers' interpupillary distance, metres (default: the rig's "
         "[tracker] ipd, else 0.063)",
     )
+
+
+def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
+    """The tracking options: camera and face model (shared with ``play --track-camera``),
+    timing, filter."""
+    g = p.add_argument_group("tracking")
+    add_tracking_camera_arguments(g)
     g.add_argument(
         "--face-width",
         type=positive,
@@ -152,6 +165,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+def checked_ipd(args: argparse.Namespace, rig: object) -> float:
+    """``--ipd`` (checked: 0.04..0.09 m), else the rig's ``[tracker] ipd``, else 0.063."""
+    from viewcomp.calib.errors import UsageError
+    from viewcomp.rt.track.anatomy import IPD
+
+    ipd = args.ipd
+    if ipd is None:
+        return float(getattr(rig, "tracker_ipd", None) or IPD)
+    if not 0.04 <= ipd <= 0.09:
+        raise UsageError(
+            f"--ipd {ipd:g}: the interpupillary distance is in metres, 0.04..0.09 "
+            "(adults about 0.063)"
+        )
+    return float(ipd)
+
+
+def tracking_rig(args: argparse.Namespace) -> object:
+    """The rig of ``--rig`` with the tracking camera of ``--tracker`` when given.
+
+    Raises:
+        RigError, BundleError: a file cannot be read; the message names it and the fix.
+    """
+    from viewcomp.calib.world.tracker import with_tracker_file
+    from viewcomp.rt.track.run import load_tracking_rig
+
+    return with_tracker_file(load_tracking_rig(args.rig), args.tracker)
+
+
 def tracker_options(args: argparse.Namespace, rig: object) -> object:
     """The :class:`viewcomp.rt.track.run.TrackOptions` for parsed arguments and a rig."""
     from viewcomp.calib.errors import UsageError
@@ -169,16 +210,6 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         raise UsageError(f"the default eye: {exc}") from None
     if args.near >= args.far:
         raise UsageError(f"--near ({args.near:g} m) must be less than --far ({args.far:g} m)")
-    from viewcomp.rt.track.anatomy import IPD
-
-    ipd = getattr(args, "ipd", None)
-    if ipd is None:
-        ipd = getattr(rig, "tracker_ipd", None) or IPD
-    elif not 0.04 <= ipd <= 0.09:
-        raise UsageError(
-            f"--ipd {ipd:g}: the interpupillary distance is in metres, 0.04..0.09 "
-            "(adults about 0.063)"
-        )
     config = TrackerConfig(
         faces=getattr(args, "faces", "nearest"),
         default_eye=default,
@@ -188,8 +219,8 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         beta=args.beta,
     )
     return TrackOptions(
-        detector_kind=getattr(args, "detector", "yunet"),
-        ipd=float(ipd),
+        detector_kind=args.detector,
+        ipd=checked_ipd(args, rig),
         face_width=args.face_width,
         near=args.near,
         far=args.far,
@@ -203,10 +234,10 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.errors import UsageError
     from viewcomp.rt.play.live import InputError, parse_host_port
     from viewcomp.rt.track.publish import LinePublisher, OscPublisher, Publisher
-    from viewcomp.rt.track.run import build, load_tracking_rig
+    from viewcomp.rt.track.run import build
     from viewcomp.rt.track.source import SourceError
 
-    rig = load_tracking_rig(args.rig)
+    rig = tracking_rig(args)
     options = tracker_options(args, rig)
     all_faces = args.faces == "all"
     publishers: list[Publisher] = []

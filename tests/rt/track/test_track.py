@@ -453,7 +453,9 @@ def test_play_with_a_bad_track_camera_is_exit_2(tmp_path: Path, capsys):
 
     cal = small_calibration(64, 32, screen="magenta")
     plain, tracked = tmp_path / "plain.vcb", tmp_path / "tracked.vcb"
-    cal.save(plain)  # its rig has no [tracker], and its camera faces the screen
+    # a rig without [tracker] (a bundle from before simulate wrote one): its camera faces the
+    # screen
+    replace(cal, rig=replace(cal.rig, tracker=None)).save(plain)
     replace(cal, rig=replace(cal.rig, tracker=walk_camera())).save(tracked)
     for bundle, says in ((plain, "add a [tracker] section"),
                          (tracked, "no such camera, file or folder")):  # fmt: skip
