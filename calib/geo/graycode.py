@@ -14,7 +14,7 @@ import numpy as np
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.captures import Captures, channel_mean
-from viewcomp.calib.geo.framematch import LIT_PERCENTILE
+from viewcomp.calib.geo.framematch import LIT_FRACTION, LIT_PERCENTILE
 from viewcomp.calib.io.patterns import graycode_patterns
 
 BIT_CONTRAST = 0.08  # |pattern - inverse| / (white - black) below which a bit is unreliable
@@ -109,8 +109,14 @@ def graycode_names(w: int, h: int) -> list[str]:
 
 
 def lit_mask(white: np.ndarray, black: np.ndarray, rel: str) -> tuple[np.ndarray, float]:
-    """(Hc, Wc) bool where the projector lights the screen (white - black above a quarter of
-    its 97th percentile), and that percentile. Raises FitError if nothing is lit.
+    """(Hc, Wc) bool where the projector lights the screen (white - black above
+    :data:`~viewcomp.calib.geo.framematch.LIT_FRACTION` of its 97th percentile, as the move
+    check's lit region), and that percentile. Raises FitError if nothing is lit.
+
+    A tenth, not a quarter: a broad lobe (bluebook) lights the frame's far sides at 0.18 of the
+    percentile, which a quarter left out of the Gray code (23 of 128 parts of the projector
+    image undecoded at 160x80); the unlit surround stays below 0.03 of it. Whether a lit pixel's
+    bits decode is a separate, relative test (:data:`BIT_CONTRAST` of its own white - black).
 
     The 97th, not a higher one: a glossy screen's highlight of the projector's lens (measured
     materials: up to 4 % of the camera image) sets a higher percentile; with the 99.5th the
@@ -124,7 +130,7 @@ def lit_mask(white: np.ndarray, black: np.ndarray, rel: str) -> tuple[np.ndarray
             f"the projector is not visible (white - black is at most {top:.3f} in linear units): "
             "point the camera at the projected image, raise the exposure, and capture again",
         )
-    return rng > 0.25 * top, top
+    return rng > LIT_FRACTION * top, top
 
 
 def decode_graycode(
