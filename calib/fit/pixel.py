@@ -47,9 +47,12 @@ DEFAULT_SMOOTH_PX = 3.0
 #: its largest channel's median gain.
 _GAIN_FLOOR = 1e-3
 #: A colour pattern darker than gray in its own channel by more than this share of the
-#: image's median rise there is out of order (noise on a channel the screen barely reflects
-#: stays within it: a webcam on green plastic, 0.6 % of the pixels for red).
+#: image's median rise there, and by more than _NOISE_SIGMAS times the rise's robust spread, is
+#: out of order. Noise on a channel the screen barely reflects stays within it: a webcam's
+#: blue on orange phenolic falls below -0.5 of its median on 2.5 % of the pixels, below the
+#: spread's bound on none.
 _DARKER = 0.5
+_NOISE_SIGMAS = 3.0
 #: Median gain below -this (units of f(110)): the gray capture is systematically below black.
 _DARK_NOISE = 0.01
 
@@ -144,7 +147,8 @@ def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndar
 
     Raises:
         FitError: a colour pattern clearly darker than gray in its own channel over more than
-            1 % of the image (:data:`_DARKER`), or not brighter on average.
+            1 % of the image (:data:`_DARKER`, :data:`_NOISE_SIGMAS`), or not brighter on
+            average.
     """
     h, w, _ = caps["gray"].shape
     # The image means must show each pattern raising its own channel most (the paper's order
@@ -160,7 +164,8 @@ def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndar
         d = _smooth(caps[name] - caps["gray"], sigma)
         own = d[..., j]
         typical = float(np.median(own))
-        darker = own < -_DARKER * typical
+        spread = 1.4826 * float(np.median(np.abs(own - typical)))  # the noise's sigma, robust
+        darker = own < -max(_DARKER * typical, _NOISE_SIGMAS * spread)
         if np.mean(darker) > 0.01:
             raise FitError(
                 f"{sub}/{name}",
