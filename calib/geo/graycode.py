@@ -10,13 +10,22 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.captures import Captures, channel_mean
-from viewcomp.calib.geo.framematch import LIT_PERCENTILE
+from viewcomp.calib.geo.framematch import LIT_FRACTION, LIT_PERCENTILE
 from viewcomp.calib.io.patterns import graycode_patterns
 
+# white - black below this fraction of its maximum over the 5 x 5 camera pixels around: a
+# pixel that the optics mix with the unlit surround (its phase biased by the dark side, its
+# Gray-code bits unreliable)
+WHOLE_FRACTION = 0.9
+WHOLE_WINDOW = 5  # camera px
+# above this share of white - black's 97th percentile a pixel is lit wherever it is; between
+# LIT_FRACTION and it, only where it sees the frame whole
+LIT_BRIGHT = 0.25
 BIT_CONTRAST = 0.08  # |pattern - inverse| / (white - black) below which a bit is unreliable
 # median |plane - inverse| / (white - black) over the lit pixels at or above which a plane
 # counts as resolved: a stripe the camera resolves reads ~0.8-1 away from its edges; one finer
@@ -109,8 +118,16 @@ def graycode_names(w: int, h: int) -> list[str]:
 
 
 def lit_mask(white: np.ndarray, black: np.ndarray, rel: str) -> tuple[np.ndarray, float]:
-    """(Hc, Wc) bool where the projector lights the screen (white - black above a quarter of
-    its 97th percentile), and that percentile. Raises FitError if nothing is lit.
+    """(Hc, Wc) bool where the projector lights the screen, and white - black's 97th
+    percentile. Raises FitError if nothing is lit.
+
+    Lit: white - black above :data:`LIT_BRIGHT` of that percentile, or above
+    :data:`~viewcomp.calib.geo.framematch.LIT_FRACTION` of it where the pixel sees the frame
+    whole (at least :data:`WHOLE_FRACTION` of its neighbourhood's maximum). A broad lobe lights
+    the frame's far sides at 0.18 of the percentile (bluebook), which a quarter alone left out
+    of the Gray code (23 of 128 parts of the projector image undecoded at 160x80); the unlit
+    surround stays below 0.03 of it; the frame's blurred edge, partly lit, stays out (its bits
+    are wrong often enough to pull the lens fit: k2 0.11 instead of 0.02 with it in).
 
     The 97th, not a higher one: a glossy screen's highlight of the projector's lens (measured
     materials: up to 4 % of the camera image) sets a higher percentile; with the 99.5th the
@@ -124,7 +141,13 @@ def lit_mask(white: np.ndarray, black: np.ndarray, rel: str) -> tuple[np.ndarray
             f"the projector is not visible (white - black is at most {top:.3f} in linear units): "
             "point the camera at the projected image, raise the exposure, and capture again",
         )
-    return rng > 0.25 * top, top
+    lit = rng > LIT_BRIGHT * top
+    dim = (rng > LIT_FRACTION * top) & ~lit
+    if dim.any():
+        kernel = np.ones((WHOLE_WINDOW, WHOLE_WINDOW), np.uint8)
+        near_max = cv2.dilate(np.ascontiguousarray(rng, np.float32), kernel)
+        lit |= dim & (rng >= WHOLE_FRACTION * near_max)
+    return lit, top
 
 
 def decode_graycode(

@@ -46,16 +46,12 @@ import numpy as np
 
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.captures import Captures, channel_mean
-from viewcomp.calib.geo.graycode import GrayCode
+from viewcomp.calib.geo.graycode import WHOLE_FRACTION, WHOLE_WINDOW, GrayCode
 from viewcomp.calib.io.patterns import PHASE_AXES, PHASE_PERIOD, PHASE_SHIFTS, phase_names
 
 # B / (white - black) below which a pixel's phase is not trusted: the sinusoid is not
 # resolved there (a pixel half off the frame, a dark spot, a blurred or too coarse camera)
 MIN_MODULATION = 0.12
-# white - black below this fraction of its maximum over the 5 x 5 camera pixels around: a
-# pixel that the optics mix with the unlit surround, whose phase the dark side biases
-WHOLE_FRACTION = 0.9
-WHOLE_WINDOW = 5  # camera px
 
 
 @dataclass(frozen=True)

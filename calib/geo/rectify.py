@@ -30,8 +30,9 @@ method and a chessboard:
    whole projector pixels; the fit over ~10^4 pixels averages that away.
 4. **Rectification**: ``cv2.remap`` (bilinear) of every Table-1 capture through the map gives
    float32 (H, W, 3) linear images on the projector grid, as a ``space = "projector"`` set;
-   the frame's outermost ring of pixels, seen half against the unlit surround, copies its
-   inner neighbours (:func:`~viewcomp.calib.geo.projmap.fill_border`).
+   the frame's edge zone, the outer lines the camera saw mixed with the unlit surround
+   (measured from the captures, at least one line: :mod:`~viewcomp.calib.geo.edgezone`),
+   takes the values of its nearest inner neighbours.
 
 The camera's response comes from rig.toml. It is checked against the captures: light adds
 up, so a Gray-code plane and its inverse, linearised, must sum to white + black even where
@@ -70,13 +71,15 @@ from viewcomp.calib.geo.checks import (
     check_pattern_order,
 )
 from viewcomp.calib.geo.chessboard import Corners, find_corners, zhang
+from viewcomp.calib.geo.edgezone import edge_widths, fill_edge_zone
 from viewcomp.calib.geo.graycode import GrayCode, check_planes, decode_graycode
 from viewcomp.calib.geo.phaseshift import PhaseMap, decode_phase, has_phase, with_phase
 from viewcomp.calib.geo.projmap import (
     ProjectorMap,
-    fill_border,
+    camera_density,
     fit_map,
     predict_from_chessboard,
+    reconstruction_sigma,
     rectify,
 )
 from viewcomp.calib.io.captureset import OPTIONAL, REQUIRED, CaptureSet
@@ -89,6 +92,8 @@ MIN_DECODED = 0.5  # share of the lit projector frame that must decode
 GRAY_SUFFICES = 0.6
 MAX_DENSE_POINTS = 12000
 BORDER_PX = 1  # projector pixels at the frame's edge, seen half against the unlit surround
+#: The captures whose edges measure the edge zone (:mod:`~viewcomp.calib.geo.edgezone`).
+EDGE_PATTERNS = ("red", "green", "blue", "gray")
 
 
 @dataclass
@@ -317,6 +322,10 @@ def rectify_capture_set(
     geo = calibrate_geometry(cs)
     stats = dict(geo.stats)
     maps = geo.map.grid()
+    density = camera_density(maps)
+    sigma = reconstruction_sigma(density)
+    stats["density_camera_px"] = round(density, 3)
+    stats["reconstruction_sigma_px"] = sigma
     white, screen = Captures(cs, "white"), Captures(cs, "screen")
     rect: dict[str, dict[str, np.ndarray]] = {"white": {}, "screen": {}}
     fractions: dict[tuple[str, str], float] = {}
@@ -326,7 +335,7 @@ def rectify_capture_set(
             if n not in caps.memory:
                 continue
             img = caps.get(n)
-            rect[caps.sub][n] = fill_border(rectify(img, maps), BORDER_PX)
+            rect[caps.sub][n] = rectify(img, maps, sigma)
             # Codes at the top decode to 1.0; a float (HDR) capture, whose raw saturation is 0,
             # holds light above 1 unclipped.
             if caps.saturation.get(n, 0.0) > 0:
@@ -335,8 +344,17 @@ def rectify_capture_set(
                 clipped[(caps.sub, n)] = np.any(top > 0, axis=-1) if top.ndim == 3 else top > 0
             else:
                 fractions[(caps.sub, n)] = 0.0
-        if check_order:  # a mono set's colour order shows only in the per-primary basis
-            check_pattern_order(rect[caps.sub], caps.sub)
+    # the edge zone, from the lit uniform patterns of both screens (the ramp's own gradient
+    # and black's lack of an edge say nothing of it); every capture gets the same, so the
+    # per-pixel terms built from several of them stay consistent
+    edge = edge_widths(
+        (imgs[n] for imgs in rect.values() for n in EDGE_PATTERNS if n in imgs), BORDER_PX
+    )
+    stats["edge_zone_px"] = edge
+    fill_edge_zone((img for imgs in rect.values() for img in imgs.values()), edge)
+    if check_order:  # a mono set's colour order shows only in the per-primary basis
+        for sub, imgs in rect.items():
+            check_pattern_order(imgs, sub)
     stats["seconds"] = round(time.perf_counter() - t0, 2)
     out = CaptureSet(
         rig=cs.rig,

@@ -181,6 +181,8 @@ def test_rectified_captures_match_the_projector_space_captures(world) -> None:
             edge = float(got[0].mean() / ref[0].mean())
             assert 0.95 < edge < 1.05
     assert stats["seconds"] > 0 and BORDER_PX == 1
+    # the simulator's camera (1.2 camera px per projector px) blurs the edge over a line or two
+    assert all(1 <= v <= 2 for v in stats["edge_zone_px"].values()), stats["edge_zone_px"]
 
 
 def test_calibrate_accepts_camera_space_and_reports_geometry(world) -> None:
