@@ -40,8 +40,21 @@ def _to8(gray: np.ndarray) -> np.ndarray:
     return np.rint(enc * 255.0).astype(np.uint8)
 
 
-def find_corners(image: np.ndarray, projector_size: tuple[int, int], rel: str) -> Corners:
+def find_corners(
+    image: np.ndarray,
+    projector_size: tuple[int, int],
+    rel: str,
+    shading: np.ndarray | None = None,
+    black: np.ndarray | None = None,
+) -> Corners:
     """The chessboard's inner corners in a camera image (Hc, Wc, 3) linear.
+
+    ``shading`` (Hc, Wc, 3) linear: a capture of one uniform level on the same screen (the
+    stage's gray), ``black`` (Hc, Wc, 3) its black, both optional. When the board is not found
+    in ``image`` as it is, it is looked for in (image - black) / (shading - black): a glossy
+    screen's highlight can light a black square as bright as the white ones around it (green
+    plastic on a webcam), and the ratio takes the screen's own colour and lobe off, leaving
+    the pattern. The corners are refined in the image they were found in.
 
     Raises:
         FitError: the chessboard is not found (``rel`` names the capture).
@@ -49,12 +62,14 @@ def find_corners(image: np.ndarray, projector_size: tuple[int, int], rel: str) -
     w, h = projector_size
     _, proj = chessboard(w, h, CHESSBOARD_SQUARES)
     pattern = (CHESSBOARD_SQUARES[0] - 1, CHESSBOARD_SQUARES[1] - 1)
-    g8 = _to8(channel_mean(image))
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    ok, found = cv2.findChessboardCorners(g8, pattern, flags=flags)
-    if not ok or found is None or len(found) != len(proj):
-        ok, found = cv2.findChessboardCornersSB(g8, pattern)
-    if not ok or found is None or len(found) != len(proj):
+    gray = channel_mean(image)
+    g8 = _to8(gray)
+    found = _detect(g8, pattern, len(proj))
+    if found is None and shading is not None:
+        gray = _over_shading(image, shading, black)
+        g8 = _to8(gray)
+        found = _detect(g8, pattern, len(proj))
+    if found is None:
         raise FitError(
             rel,
             f"no chessboard with {pattern[0]}x{pattern[1]} inner corners found: the camera must "
@@ -76,11 +91,36 @@ def find_corners(image: np.ndarray, projector_size: tuple[int, int], rel: str) -
         [proj[0] - 0.5 * side, proj[0] + [0.5 * side, -0.5 * side]], np.float64
     )  # centre of square (0, 0) (black) and of square (1, 0) (white)
     px = cv2.perspectiveTransform(probe[None], hom)[0]
-    gray = channel_mean(image)
     vals = [float(cv2.getRectSubPix(gray, (3, 3), (float(x), float(y))).mean()) for x, y in px]
     if vals[0] > vals[1]:
         cam = cam[::-1].copy()
     return Corners(camera=cam, projector=proj)
+
+
+def _detect(g8: np.ndarray, pattern: tuple[int, int], n: int) -> np.ndarray | None:
+    """OpenCV's corners of ``pattern`` (inner corners per row, per column) in ``g8`` (H, W)
+    uint8, (n, 1, 2) float32, or None when not all ``n`` are found."""
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    ok, found = cv2.findChessboardCorners(g8, pattern, flags=flags)
+    if not ok or found is None or len(found) != n:
+        ok, found = cv2.findChessboardCornersSB(g8, pattern)
+    if not ok or found is None or len(found) != n:
+        return None
+    return np.asarray(found, np.float32)
+
+
+def _over_shading(image: np.ndarray, shading: np.ndarray, black: np.ndarray | None) -> np.ndarray:
+    """(H, W) float32: the channel mean of ``image`` over that of ``shading`` (black taken off
+    both), the shading floored at 2 % of its 99th percentile so that the unlit surround reads
+    about 0 rather than noise over noise."""
+    img = channel_mean(image)
+    ref = channel_mean(shading)
+    if black is not None:
+        dark = channel_mean(black)
+        img = img - dark
+        ref = ref - dark
+    floor = max(0.02 * float(np.percentile(ref, 99.0)), 1e-6)
+    return (np.maximum(img, 0.0) / np.maximum(ref, floor)).astype(np.float32)
 
 
 def zhang(corners: Corners, rig: Rig) -> tuple[np.ndarray, np.ndarray, float]:

@@ -143,7 +143,7 @@ def _chessboard(
             f"{sat:.1%} of its pixel-channels are at the maximum code (saturated): lower the "
             "camera's exposure or the projector's brightness and capture again",
         )
-    corners = find_corners(cb, size, screen.rel("chessboard"))
+    corners = find_corners(cb, size, screen.rel("chessboard"), *_shading(screen))
     k, dist, zhang_rms = zhang(corners, rig)
     stats: dict[str, Any] = {
         "space": "camera",
@@ -154,7 +154,7 @@ def _chessboard(
         },
     }
     if white.has("chessboard"):
-        wc = find_corners(white.get("chessboard"), size, white.rel("chessboard"))
+        wc = find_corners(white.get("chessboard"), size, white.rel("chessboard"), *_shading(white))
         shift = float(np.sqrt(np.mean(np.sum((wc.camera - corners.camera) ** 2, axis=1))))
         stats["chessboard"]["white_vs_screen_px"] = round(shift, 4)
         if shift > MOVE_LIMIT_PX:
@@ -166,6 +166,13 @@ def _chessboard(
                 "sets again",
             )
     return corners, k, dist, stats
+
+
+def _shading(caps: Captures) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The set's gray and black (None where missing), what the chessboard is divided by when
+    it is not found as it is (:func:`~viewcomp.calib.geo.chessboard.find_corners`)."""
+    gray = caps.get("gray") if caps.has("gray") else None
+    return gray, caps.get("black") if caps.has("black") else None
 
 
 def _phase(screen: Captures, gc: GrayCode, mover: MoveCheck) -> tuple[GrayCode, PhaseMap | None]:

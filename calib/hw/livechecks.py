@@ -172,7 +172,8 @@ class LiveChecks:
             )
 
     def _chessboard(self, sub: str, rel: str, lin: np.ndarray) -> None:
-        corners = find_corners(lin, self.projector_size, rel).camera
+        shading = self.gray[sub], self.black.get(sub)
+        corners = find_corners(lin, self.projector_size, rel, *shading).camera
         self.corners[sub] = corners
         if sub == "screen" and "white" in self.corners:
             shift = float(np.sqrt(np.mean(np.sum((corners - self.corners["white"]) ** 2, 1))))
