@@ -127,3 +127,23 @@ def test_the_webcam_on_a_measured_material_is_not_refused_as_moved(
         assert "saturated" in err and "--hdr" in err, err
     if hdr and name == "bluebook":
         assert main(["calibrate", str(out), "-o", str(tmp_path / "b.npz")]) == 0
+
+
+@pytest.mark.slow
+def test_a_dslr_whose_shortest_stop_clips_takes_it_with_the_projector_dimmed(
+    tmp_path: Path, capsys, materials_dir: Path
+) -> None:
+    """The DSLR on bluebook: its bracket goes downward (83 ms and 1/4 of it), and the
+    highlight clips even in the 1/4 stop (refused as "clipped even in the shortest bracket
+    stop" before the dimmed stops); the clipped captures are taken again at that stop with
+    the pattern dimmed, and the set is written and calibrates."""
+    out = tmp_path / "c"
+    material = str(materials_dir / "bluebook.npz")
+    argv = ["capture", str(out), "--emulate", "dslr", "--material", material]
+    argv += ["--sim-size", "160x80", "--frames", "2", "--seed", "0", "--yes", "--hdr"]
+    assert main(argv) == 0, capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "HDR bracket: relative exposures 1, 1/4 " in err, err
+    assert "the projector's drive dimmed" in err, err
+    assert "were taken again with the projector dimmed" in err
+    assert main(["calibrate", str(out), "-o", str(tmp_path / "b.npz")]) == 0
