@@ -6,7 +6,8 @@ one impairment removed (a profile override for this experiment only; the shipped
 not changed), run through :func:`viewcomp.calib.eval.hardware.hardware_case` (the real capture
 procedure on the emulator, `calibrate`, compensation judged through the emulator's physics)
 on the glossy magenta screen, 8 bits, beside the ideal pipeline: mean CIEDE2000 at 60 and 125
-degrees and their ratio to ideal (the criterion is 1.15). ``no_mosaic`` samples every channel
+degrees and their ratio to ideal (the criterion is 1.15); ``--screen`` and ``--capture`` run
+another screen (a measured material's .npz) or HDR. ``no_mosaic`` samples every channel
 at every pixel (no Bayer mosaic, no demosaicking; the sensor and processing functions of
 :mod:`viewcomp.calib.emu.camera` replaced for that variant). About 30 s a variant at 320x160
 on an idle 2-core machine. Run from the repository root::
@@ -23,6 +24,7 @@ import sys
 import time
 from collections.abc import Iterator
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -102,6 +104,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="320x160")
     ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--screen", default="magenta", help="a colour name or a material .npz")
+    ap.add_argument("--capture", default="8bit", choices=["8bit", "hdr"])
     args = ap.parse_args()
     size = tuple(int(v) for v in args.size.lower().split("x"))
     ideal: dict[str, Any] = {}
@@ -109,7 +113,8 @@ def main() -> int:
         t0 = time.perf_counter()
         prof = replace(WEBCAM, **VARIANTS[name])
         with _mosaic_free(name in _MOSAIC_FREE):
-            row = hardware_case(prof, "magenta", "8bit", size, angles=(60.0, 125.0), ideal=ideal)
+            screen = Path(args.screen) if args.screen.endswith(".npz") else args.screen
+            row = hardware_case(prof, screen, args.capture, size, angles=(60.0, 125.0), ideal=ideal)
         out: dict[str, Any] = {"variant": name, "refused": row["refused"]}
         if not row["refused"]:
             for a in ("60", "125"):
