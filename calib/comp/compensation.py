@@ -259,9 +259,14 @@ class Compensation:
             self._view = (key, mk, ak, p.astype(np.float64), d.astype(np.float64))
         return self._view[1], self._view[2], self._view[3], self._view[4]
 
-    def __call__(self, thumb: np.ndarray, eye: View, t: float | None = None) -> FrameParams:
+    def __call__(
+        self, thumb: np.ndarray, eye: View, t: float | None = None, cut: bool | None = None
+    ) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye (3,) metres or
-        an :class:`Audience` (pixel method), the time (s)."""
+        an :class:`Audience` (pixel method), the time (s). ``cut``: whether a new shot began
+        since the last call, as the caller's :class:`~viewcomp.calib.comp.shots.ShotDetector`
+        saw it on every frame (a caller that skips frames); None: detected here from the
+        thumbnails given (a caller that gives every frame)."""
         eye = as_view(eye)
         if isinstance(eye, Audience) and self.method != "pixel":
             raise ValueError("an audience of several viewers needs the pixel method")
@@ -297,7 +302,7 @@ class Compensation:
         if self.tone == "adaptive" and not isinstance(eye, Audience):
             assert model is not None
             return FrameParams(
-                model, alpha, beta, tone, gains, self._field(model, thumb, eye, tone, t)
+                model, alpha, beta, tone, gains, self._field(model, thumb, eye, tone, t, cut)
             )
         if self.smoother is not None and t is not None:
             alpha, beta = self.smoother.update(t, alpha, beta)
@@ -310,6 +315,7 @@ class Compensation:
         eye: np.ndarray,
         tone: ToneMap,
         t: float | None,
+        cut: bool | None = None,
     ) -> ToneField:
         """The adaptive field for a frame: a whole search for a still and at a cut, a local
         one from the last frame's within a shot; smoothed over a shot's frames."""
@@ -319,7 +325,7 @@ class Compensation:
         pred = AdaptedPrediction(*tone_terms(m_inv, cw, a), m, a, cw)
         if t is None:
             return choose_field(pred, (tone.alpha, tone.beta))
-        cut = self.fields.is_cut(thumb)
+        cut = self.fields.is_cut(thumb) if cut is None else cut
         last = None if cut else self.fields.raw
         field = choose_field(pred, (tone.alpha, tone.beta), last)
         return self.fields.update(t, field, cut)
