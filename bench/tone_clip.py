@@ -120,6 +120,8 @@ def measure(
     inside = np.array([i for i in range(1, len(frames)) if i not in first])
     d_lum = np.abs(lum[inside] / lum[inside - 1] - 1.0)
     d_ratio = np.abs(ratio[inside] / ratio[inside - 1] - 1.0)
+    big = int(inside[np.argmax(mine[inside])])  # the tone map's largest step inside a shot
+    cut_before = max(s for s in starts if s <= big)
     settle, settle_own = [], []
     for k, s in enumerate(starts[1:], 1):
         end = starts[k + 1] if k + 1 < len(starts) else len(frames)
@@ -134,7 +136,8 @@ def measure(
         f"seen/ideal ratio change mean {100 * d_ratio.mean():.3f} % max "
         f"{100 * d_ratio.max():.3f} %; settled after each cut (s): {settle}; "
         f"the tone map's own change inside shots mean {100 * mine[inside].mean():.3f} % "
-        f"max {100 * mine[inside].max():.3f} %, settled after each cut (s): {settle_own}; "
+        f"max {100 * mine[inside].max():.3f} % ({(big - cut_before) / fps:.3f} s into its "
+        f"shot), settled after each cut (s): {settle_own}; "
         f"{sec / len(frames) * 1000:.0f} ms per frame (choosing the parameters)",
         flush=True,
     )
