@@ -14,10 +14,13 @@ own change taken out), and per cut the time after which that ratio changes by le
 
 The ratio still moves with the content where the map is not a uniform scale: a pan by whole
 pixels moves the picture over the screen's uneven reach a row at a time, and the soft clip
-follows it (held at one field, the adaptive map's ratio steps 0.4-0.6 % at each row of the
-coffee shot's vertical pan). So beside it the tone map's *own* change: each frame seen under
-its own parameters against under the last frame's (the same content), its mean and largest
-inside shots and the time after each cut from which it stays under 0.5 % per frame.
+follows it (``--hold``: every frame of a shot drawn with its first frame's parameters, so
+that what moves the ratio is the content alone). So beside it the tone map's *own* change:
+each frame seen under its own parameters against under the last frame's (the same content),
+its mean and largest inside shots and the time after each cut from which it stays under
+0.5 % per frame.
+
+``--hold``: as ``render`` gets them, then each shot's first frame's held for the shot.
 
 ``--worker``: the parameters as ``play`` and the embedding API get them instead: the clip
 is fed in real time (frame i at i / fps s) to a ``LiveRenderer`` (headless GL, its tone
@@ -150,6 +153,7 @@ def main() -> None:
     ap.add_argument("--screen", default="red")
     ap.add_argument("--angle", type=float, default=60.0)
     ap.add_argument("--worker", action="store_true", help="the parameters as play gets them")
+    ap.add_argument("--hold", action="store_true", help="each shot's first parameters held")
     args = ap.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     rig = simulation_rig()
@@ -168,11 +172,14 @@ def main() -> None:
         f"{len(frames)} frames ({len(frames) / args.fps:g} s, {args.fps} fps), cuts at "
         f"{[s / args.fps for s in starts[1:]]} s; {args.screen} glossy screen at "
         f"{args.angle:g} deg; parameters as {'play' if args.worker else 'render'} gets them"
+        f"{', each shot held at its first' if args.hold else ''}"
     )
     get = worker_params if args.worker else render_params
     for tone in ("global", "adaptive"):
         t0 = time.perf_counter()
         params = get(cal, frames, eye, tone, args.fps)
+        if args.hold:  # the content's own part: each shot at its first frame's parameters
+            params = [params[max(s for s in starts if s <= i)] for i in range(len(frames))]
         sec = time.perf_counter() - t0
         measure(tone, params, frames, starts, args.fps, sim, screen, eye, ideal, sec)
 
