@@ -27,7 +27,9 @@ class ToneWorker:
     until max(period, 2 c) has passed since the call began, unless a cut is asked for: a
     request that starts a new shot (``cut=True``, detected by the caller on every frame) ends
     the rest at once and stays a cut when a later request of the same shot replaces it, so
-    the new shot's own tone map comes after one call, not after a rest and a guess.
+    the new shot's own tone map comes after one call, not after a rest and a guess. At a cut
+    the adaptive field's first stage (``Compensation``'s ``early``) becomes the latest result
+    as soon as it is known, so frames leave the old shot's field before the search ends.
     """
 
     def __init__(self, comp: Compensation, period: float = 0.1) -> None:
@@ -49,8 +51,13 @@ class ToneWorker:
         """One synchronous call (``cut`` as ``Compensation``'s); also becomes the latest
         result."""
         start = time.perf_counter()
+        seen = copy_view(eye)
+
+        def first(q: FrameParams) -> None:  # a cut's first stage, shown until the call ends
+            self._result = (q, seen)
+
         with self._lock:
-            p = self.comp(thumb, eye, t, cut)
+            p = self.comp(thumb, eye, t, cut, first)
             self._result = (p, copy_view(eye))
             self.calls += 1
             self.busy_seconds += time.perf_counter() - start

@@ -24,7 +24,11 @@ class _Comp:
         self.hold.set()
         self.entered = threading.Event()
 
-    def __call__(self, thumb: np.ndarray, eye: Any, t: float, cut: bool | None = None) -> Any:
+    def __call__(
+        self, thumb: np.ndarray, eye: Any, t: float, cut: bool | None = None, early: Any = None
+    ) -> Any:
+        if cut and early is not None:
+            early(("first stage", t))
         self.entered.set()
         self.hold.wait(10.0)
         self.calls.append((t, cut))
@@ -75,4 +79,23 @@ def test_a_cut_survives_a_later_request_of_the_same_shot() -> None:
         assert _wait(lambda: len(comp.calls) == 2)
         assert comp.calls == [(1.0, False), (3.0, True)]
     finally:
+        worker.stop()
+
+
+def test_a_cuts_first_stage_is_shown_before_its_call_ends() -> None:
+    comp = _Comp()
+    worker = _worker(comp, period=60.0)
+    thumb = np.zeros((4, 8, 3), np.uint8)
+    try:
+        worker.compute(thumb, EYE, 0.0, True)
+        comp.entered.clear()
+        comp.hold.clear()
+        worker.submit(thumb, EYE, 1.0, True)
+        assert comp.entered.wait(5.0)  # the call is under way, held
+        latest = worker.latest()
+        assert latest is not None and latest[0] == ("first stage", 1.0)
+        comp.hold.set()
+        assert _wait(lambda: (worker.latest() or (None,))[0] == ("params", 1.0))
+    finally:
+        comp.hold.set()
         worker.stop()
