@@ -17,6 +17,8 @@ smallest steps (a local search).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from viewcomp.calib.comp.tonemap import delta_e94, linear_lab
@@ -108,9 +110,12 @@ def choose_field(
     global_tone: tuple[float, float] | None = None,
     start: ToneField | None = None,
     nodes: tuple[int, int] = NODES,
+    early: Callable[[ToneField], None] | None = None,
 ) -> ToneField:
     """The field for a thumbnail (module docstring): a whole search, or with ``start`` (the
-    last video frame's field) a local one."""
+    last video frame's field) a local one. ``early``: a whole search calls it with its first
+    stage's field (the best uniform one, about a tenth of the search's cost) before the
+    node search."""
     if start is not None:
         return _node_search(pred, start, pred(start), [(0.125, 0.01)])[0]
     best, cost = None, np.inf
@@ -125,4 +130,6 @@ def choose_field(
         if e < cost:
             best, cost = f, e
     assert best is not None
+    if early is not None:
+        early(best)
     return _node_search(pred, best, cost, [(0.5, 0.04), (0.25, 0.02), (0.125, 0.01)])[0]

@@ -16,6 +16,7 @@ With ``tau`` set, (alpha, beta) are smoothed over time so brightness does not fl
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -259,9 +260,22 @@ class Compensation:
             self._view = (key, mk, ak, p.astype(np.float64), d.astype(np.float64))
         return self._view[1], self._view[2], self._view[3], self._view[4]
 
-    def __call__(self, thumb: np.ndarray, eye: View, t: float | None = None) -> FrameParams:
+    def __call__(
+        self,
+        thumb: np.ndarray,
+        eye: View,
+        t: float | None = None,
+        cut: bool | None = None,
+        early: Callable[[FrameParams], None] | None = None,
+    ) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye (3,) metres or
-        an :class:`Audience` (pixel method), the time (s)."""
+        an :class:`Audience` (pixel method), the time (s). ``cut``: whether a new shot began
+        since the last call, as the caller's :class:`~viewcomp.calib.comp.shots.ShotDetector`
+        saw it on every frame (a caller that skips frames); None: detected here from the
+        thumbnails given (a caller that gives every frame). ``early``: at a cut in video with
+        the adaptive field, called with the new shot's first-stage parameters (the best
+        uniform field) before its node search ends, for a caller on another thread to show
+        meanwhile (the tone worker); the returned parameters replace them."""
         eye = as_view(eye)
         if isinstance(eye, Audience) and self.method != "pixel":
             raise ValueError("an audience of several viewers needs the pixel method")
@@ -296,9 +310,14 @@ class Compensation:
         alpha, beta = tone.alpha, tone.beta
         if self.tone == "adaptive" and not isinstance(eye, Audience):
             assert model is not None
-            return FrameParams(
-                model, alpha, beta, tone, gains, self._field(model, thumb, eye, tone, t)
-            )
+            m = model
+
+            def first(f: ToneField) -> None:
+                if early is not None:
+                    early(FrameParams(m, alpha, beta, tone, gains, f))
+
+            field = self._field(model, thumb, eye, tone, t, cut, first)
+            return FrameParams(model, alpha, beta, tone, gains, field)
         if self.smoother is not None and t is not None:
             alpha, beta = self.smoother.update(t, alpha, beta)
         return FrameParams(model, alpha, beta, tone, gains)
@@ -310,6 +329,8 @@ class Compensation:
         eye: np.ndarray,
         tone: ToneMap,
         t: float | None,
+        cut: bool | None = None,
+        early: Callable[[ToneField], None] | None = None,
     ) -> ToneField:
         """The adaptive field for a frame: a whole search for a still and at a cut, a local
         one from the last frame's within a shot; smoothed over a shot's frames."""
@@ -319,9 +340,9 @@ class Compensation:
         pred = AdaptedPrediction(*tone_terms(m_inv, cw, a), m, a, cw)
         if t is None:
             return choose_field(pred, (tone.alpha, tone.beta))
-        cut = self.fields.is_cut(thumb)
+        cut = self.fields.is_cut(thumb) if cut is None else cut
         last = None if cut else self.fields.raw
-        field = choose_field(pred, (tone.alpha, tone.beta), last)
+        field = choose_field(pred, (tone.alpha, tone.beta), last, early=early if cut else None)
         return self.fields.update(t, field, cut)
 
     def compensate_image(

@@ -6,6 +6,12 @@ fraction of full scale): a new shot. At a cut the field jumps to the new shot's 
 whole search), so it is settled from the cut's first frame on; within a shot each frame's
 field (a local search from the last) is eased in exponentially with time constant ``tau``
 seconds, so the picture's brightness never steps.
+
+Cuts are detected on every frame by one :class:`ShotDetector`: inside
+:class:`~viewcomp.calib.comp.compensation.Compensation` when it sees every frame (``render``),
+and on the frame thread of the embedding API (``play``, ``LiveRenderer``), whose tone worker
+sees only some frames and is told of a cut with the request (``Compensation(..., cut=)``), so
+that the same rule decides in every path and a cut does not wait for the worker's rest.
 """
 
 from __future__ import annotations
@@ -34,6 +40,21 @@ def block_means(thumb: np.ndarray) -> np.ndarray:
     return out
 
 
+class ShotDetector:
+    """Cut detection over consecutive thumbnails (module docstring); feed it every frame."""
+
+    def __init__(self) -> None:
+        self._blocks: np.ndarray | None = None
+
+    def is_cut(self, thumb: np.ndarray) -> bool:
+        """Whether ``thumb`` starts a new shot (the first frame does); remembers it."""
+        blocks = block_means(thumb)
+        last, self._blocks = self._blocks, blocks
+        if last is None or last.shape != blocks.shape:
+            return True
+        return float(np.mean(np.abs(blocks - last))) > CUT_THRESHOLD
+
+
 class FieldSmoother:
     """Cut detection and exponential smoothing of the adaptive field over a video's frames.
 
@@ -46,15 +67,11 @@ class FieldSmoother:
         self.state: ToneField | None = None
         self.raw: ToneField | None = None  # the last frame's field before smoothing
         self.t: float | None = None
-        self._blocks: np.ndarray | None = None
+        self.shots = ShotDetector()
 
     def is_cut(self, thumb: np.ndarray) -> bool:
-        """Whether ``thumb`` starts a new shot (the first frame does); remembers it."""
-        blocks = block_means(thumb)
-        last, self._blocks = self._blocks, blocks
-        if last is None or last.shape != blocks.shape:
-            return True
-        return float(np.mean(np.abs(blocks - last))) > CUT_THRESHOLD
+        """Whether ``thumb`` starts a new shot (:meth:`ShotDetector.is_cut`)."""
+        return self.shots.is_cut(thumb)
 
     def update(self, t: float, field: ToneField, cut: bool) -> ToneField:
         """Feed the field chosen for the frame at time ``t`` (s); returns the one to show."""

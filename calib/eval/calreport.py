@@ -11,6 +11,10 @@ reads at a glance.
   (as a fraction of its full output) that the real screen can show to a viewer at 90 degrees
   - 1 where the screen can match a white screen, lower where its colour or darkness limits
   what any compensation can show.
+- ``reach.png``: the per-pixel reach seen by a viewer at 90 degrees: per projector pixel the
+  highest colour (every channel at full drive) and the lowest (the projector's black) it can
+  produce on the surface, beside the white screen at full output
+  (:mod:`viewcomp.calib.eval.reach_picture`).
 """
 
 from __future__ import annotations
@@ -21,12 +25,16 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.calib.eval.reach_picture import reach_picture
 from viewcomp.calib.eval.verdict import Verdict
 from viewcomp.calib.fit.calibrate import Calibration
 from viewcomp.calib.io.atomic import atomic_dir, atomic_open
+from viewcomp.calib.io.imageio import write_png
 from viewcomp.calib.model.reference import screen_at, white_response
 
-REPORT_FILES = ("calibration.json", "exposure.png", "residual.png", "gamut.png")
+REPORT_FILES = ("calibration.json", "exposure.png", "residual.png", "gamut.png", "reach.png")
+#: The angle (degrees) of the viewer the report's gamut and reach pictures are seen by.
+REPORT_ANGLE = 90.0
 
 
 def reachable_white(cal: Calibration, eye: np.ndarray) -> np.ndarray:
@@ -77,7 +85,8 @@ def write_calibration_report(
     """Write :data:`REPORT_FILES` into the folder ``out`` (made or replaced whole, atomically);
     ``maps`` holds ``"ramp_residual"`` (H, W) from ``calibrate(..., maps=...)``."""
     full = cal.pixel.white.W.sum(axis=-1) + cal.pixel.white.A
-    reach = reachable_white(cal, cal.eye(90.0))
+    eye = cal.eye(REPORT_ANGLE)
+    reach = reachable_white(cal, eye)
     summary: dict[str, Any] = {
         "verdict": verdict.to_json(),
         "gamut_at_90": {
@@ -110,5 +119,14 @@ def write_calibration_report(
             "compensable gamut at 90 degrees: brightest white the screen can show",
             "fraction of the white screen's full output",
             1.0,
+        )
+        write_png(
+            tmp / "reach.png",
+            reach_picture(
+                cal,
+                [(f"seen at {REPORT_ANGLE:.0f} degrees", eye)],
+                f"per-pixel reach at {REPORT_ANGLE:.0f} degrees: the highest and lowest colour "
+                "each projector pixel can produce on the surface",
+            ),
         )
     return [Path(out) / name for name in REPORT_FILES]

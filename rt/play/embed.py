@@ -29,7 +29,9 @@ The tone map (and, for the paper's method, the model, which depends on the eye) 
 20-500 ms of CPU per call; with ``async_tone=True`` (default) it runs on a worker thread at
 most ``tone_hz`` times a second and each frame uses the newest result: frames never wait for
 it, and with the tone smoothing (``tone_tau``, 0.5 s) the lag does not show. The first
-frame computes it synchronously.
+frame computes it synchronously. Cuts are detected here on every frame
+(:class:`~viewcomp.calib.comp.shots.ShotDetector`, the rule ``render`` uses) and told to the
+worker, which starts the new shot's search at once.
 
 A frame already in one of the host's GL textures goes in with :meth:`LiveRenderer.render_texture`
 (the texture's id, size and format): it is fitted to the grid on the GPU and copied into the
@@ -53,6 +55,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation, FrameParams, thumbnail
+from viewcomp.calib.comp.shots import ShotDetector
 from viewcomp.calib.comp.tonemap import DEFAULT_LAMBDA
 from viewcomp.calib.model.reference import View
 from viewcomp.calib.world.audience import Audience
@@ -173,6 +176,7 @@ class LiveRenderer(Presentation, TextureInput):
         self.grid: tuple[int, int] = (w, h)
         self._tone = ToneWorker(self.comp, 1.0 / tone_hz) if async_tone else None
         self._tone_period = 1.0 / tone_hz
+        self._shots = ShotDetector()  # cuts seen on every frame, told to the tone worker
         self._tex_in: tuple[Any, Any, Any, Any] | None = None
         self._tex_thumb: tuple[np.ndarray, float] | None = None
         self._released = False
@@ -243,12 +247,13 @@ class LiveRenderer(Presentation, TextureInput):
         return thumbnail(frame, self.tone_side)
 
     def _params(self, thumb: np.ndarray, eye: View, now: float) -> tuple[FrameParams, View]:
+        cut = self._shots.is_cut(thumb)
         if self._tone is None:
-            return self.comp(thumb, eye, now), copy_view(eye)
+            return self.comp(thumb, eye, now, cut), copy_view(eye)
         latest = self._tone.latest()
         if latest is None:  # the first frame: compute it here, once
-            return self._tone.compute(thumb, eye, now), copy_view(eye)
-        self._tone.submit(thumb, eye, now)
+            return self._tone.compute(thumb, eye, now, cut), copy_view(eye)
+        self._tone.submit(thumb, eye, now, cut)
         return latest
 
     def prepare(self, frame: np.ndarray | Planes, now: float | None = None) -> FrameRecord:

@@ -24,7 +24,12 @@ class ToneWorker:
     ``compute`` runs one call synchronously (under the same lock); ``submit`` hands a request
     to the thread; ``latest`` returns the newest result with the eye it was computed for.
     The thread keeps its duty cycle at or below one half: after a call of cost c it rests
-    until max(period, 2 c) has passed since the call began.
+    until max(period, 2 c) has passed since the call began, unless a cut is asked for: a
+    request that starts a new shot (``cut=True``, detected by the caller on every frame) ends
+    the rest at once and stays a cut when a later request of the same shot replaces it, so
+    the new shot's own tone map comes after one call, not after a rest and a guess. At a cut
+    the adaptive field's first stage (``Compensation``'s ``early``) becomes the latest result
+    as soon as it is known, so frames leave the old shot's field before the search ends.
     """
 
     def __init__(self, comp: Compensation, period: float = 0.1) -> None:
@@ -34,27 +39,41 @@ class ToneWorker:
         self.busy_seconds = 0.0
         self._lock = threading.Lock()
         self._cond = threading.Condition()
-        self._request: tuple[np.ndarray, View, float] | None = None
+        self._request: tuple[np.ndarray, View, float, bool | None] | None = None
         self._result: tuple[FrameParams, View] | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="viewcomp-tone", daemon=True)
         self._thread.start()
 
-    def compute(self, thumb: np.ndarray, eye: View, t: float) -> FrameParams:
-        """One synchronous call; also becomes the latest result."""
+    def compute(
+        self, thumb: np.ndarray, eye: View, t: float, cut: bool | None = None
+    ) -> FrameParams:
+        """One synchronous call (``cut`` as ``Compensation``'s); also becomes the latest
+        result."""
         start = time.perf_counter()
+        seen = copy_view(eye)
+
+        def first(q: FrameParams) -> None:  # a cut's first stage, shown until the call ends
+            self._result = (q, seen)
+
         with self._lock:
-            p = self.comp(thumb, eye, t)
+            p = self.comp(thumb, eye, t, cut, first)
             self._result = (p, copy_view(eye))
             self.calls += 1
             self.busy_seconds += time.perf_counter() - start
         return p
 
-    def submit(self, thumb: np.ndarray, eye: View, t: float) -> None:
-        """Ask for a call with these inputs (replaces a request not yet started)."""
+    def submit(self, thumb: np.ndarray, eye: View, t: float, cut: bool | None = None) -> None:
+        """Ask for a call with these inputs (replaces a request not yet started; a cut in
+        the one replaced carries over). ``cut``: a new shot began since the last request."""
         with self._cond:
-            self._request = (thumb, copy_view(eye), t)
+            if cut is not None and self._request is not None and self._request[3]:
+                cut = True
+            self._request = (thumb, copy_view(eye), t, cut)
             self._cond.notify()
+
+    def _cut_waiting(self) -> bool:
+        return self._request is not None and bool(self._request[3])
 
     def latest(self) -> tuple[FrameParams, View] | None:
         """The newest (FrameParams, eye) or None before the first call."""
@@ -76,7 +95,12 @@ class ToneWorker:
 
                 logging.getLogger(__name__).exception("tone map computation failed")
             cost = time.perf_counter() - start
-            if self._stop.wait(max(self.period - cost, cost)):
+            with self._cond:  # the rest; a cut ends it
+                self._cond.wait_for(
+                    lambda: self._stop.is_set() or self._cut_waiting(),
+                    max(self.period - cost, cost),
+                )
+            if self._stop.is_set():
                 return
 
     def stop(self) -> None:

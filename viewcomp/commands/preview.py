@@ -33,6 +33,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="video: rows of the contact sheet, evenly spaced (default 4)",
     )
+    p.add_argument(
+        "--reach",
+        metavar="PNG",
+        help="also write the per-pixel reach at the eye (each viewer of --audience: one row "
+        "each) to this picture: the highest and lowest colour each projector pixel can produce "
+        "on the surface, beside the white screen at full output",
+    )
     p.set_defaults(run=run)
 
 
@@ -56,6 +63,24 @@ def _video_frames(path: Path, grid: tuple[int, int], n: int) -> list[tuple[float
     return [(planes[i].time, yuv420p_to_rgb(planes[i])) for i in idx]
 
 
+def _write_reach(cal: object, eyes: list, path: Path) -> None:
+    """The per-pixel reach picture at each eye (calib/eval/reach_picture.py)."""
+    import numpy as np
+
+    from viewcomp.calib.eval.reach_picture import reach_picture
+    from viewcomp.calib.fit.calibrate import Calibration
+    from viewcomp.calib.io.imageio import write_png
+
+    assert isinstance(cal, Calibration)
+    rows = []
+    for eye in eyes:
+        angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
+        rows.append((f"seen at {angle:.0f} deg", np.asarray(eye, np.float64)))
+    title = "per-pixel reach: the highest and lowest colour each projector pixel can produce"
+    write_png(path, reach_picture(cal, rows, title))
+    print(f"wrote {path}: the per-pixel reach at {len(rows)} eye(s)")
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -75,6 +100,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"-o {out} would overwrite an input; give another file name")
     if args.frames < 1:
         raise UsageError(f"--frames is at least 1, got {args.frames}")
+    reach_out = Path(args.reach) if args.reach is not None else None
+    if reach_out is not None:
+        if reach_out.suffix.lower() != ".png":
+            raise UsageError(f"the reach is a picture: give --reach a .png file, got {reach_out}")
+        if reach_out.resolve() in (out.resolve(), src.resolve(), Path(args.calib).resolve()):
+            raise UsageError(f"--reach {reach_out} would overwrite another file; give another name")
     cal = Calibration.load(args.calib)
     audience = None
     if args.audience is not None:
@@ -115,6 +146,8 @@ def run(args: argparse.Namespace) -> int:
         "CIEDE2000 vs the white screen"
     )
     write_png(out, preview_picture(previews, args.method, title))
+    if reach_out is not None:
+        _write_reach(cal, eyes, reach_out)
     unc = np.mean([p.de_uncompensated for _, p in previews])
     com = np.mean([p.de_compensated for _, p in previews])
     frames = f", {len(images)} frames" if len(images) > 1 else ""

@@ -48,3 +48,25 @@ def test_video_field_is_smoothed_and_reset_at_a_cut() -> None:
     # A still shot: the local search from the same field moves it little, smoothed less.
     assert np.max(np.abs(np.log(again.gain / first.gain))) < 0.1
     assert comp.fields.raw is cut  # the cut's own field, unsmoothed
+
+
+def test_a_cuts_first_stage_is_offered_early_and_replaced() -> None:
+    """At a cut (video, adaptive) the caller's ``early`` gets the best uniform field before
+    the node search; within a shot and for stills it is not called."""
+    from viewcomp.calib.comp.compensation import FrameParams, thumbnail
+
+    cal = small_calibration(screen="red")
+    comp = Compensation(cal, "pixel", tau=0.5, tone="adaptive")
+    imgs = natural_images(64, 32)
+    eye = small_simulator().rig.viewer.eye(60.0)
+    got: list[FrameParams] = []
+    final = comp(thumbnail(imgs["coffee"]), eye, 0.0, early=got.append)
+    assert len(got) == 1 and got[0].field is not None and final.field is not None
+    first = got[0].field
+    assert np.all(first.gain == first.gain[0, 0]) and np.all(first.offset == first.offset[0, 0])
+    assert comp.fields.state is final.field  # the search's end is the shot's start
+    comp(thumbnail(imgs["coffee"]), eye, 1 / 24, early=got.append)
+    comp(thumbnail(imgs["coffee"]), eye, early=got.append)
+    assert len(got) == 1
+    comp(thumbnail(imgs["astronaut"]), eye, 2 / 24, early=got.append)
+    assert len(got) == 2

@@ -13,6 +13,7 @@ import pytest
 from viewcomp.calib.eval.calreport import REPORT_FILES, reachable_white
 from viewcomp.calib.eval.verdict import judge
 from viewcomp.calib.fit.calibrate import Calibration
+from viewcomp.calib.io.imageio import read_rgb8
 from viewcomp.calib.model.reference import screen_at, white_response
 
 
@@ -57,6 +58,9 @@ def test_report_holds_the_verdict_and_the_pictures(bundles) -> None:
         data = json.loads((folder / "calibration.json").read_text())
         assert data["verdict"]["level"] == level
         assert {f["name"] for f in data["verdict"]["findings"]} >= {"exposure", "noise"}
+        # the reach at 90 degrees: white | highest | lowest, each the grid's width
+        w = Calibration.load(bundles[name][0]).shape[1]
+        assert read_rgb8(folder / "reach.png").shape[1] == 3 * w + 2 * 4
 
 
 def test_the_verdict_is_the_same_from_the_saved_bundle(bundles) -> None:

@@ -1,0 +1,101 @@
+"""The tone worker: the newest request wins, its duty cycle rests, and a cut ends the rest."""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, cast
+
+import numpy as np
+
+from viewcomp.calib.comp.compensation import Compensation
+from viewcomp.rt.play.tone_worker import ToneWorker
+
+EYE = np.zeros(3)
+
+
+class _Comp:
+    """Stands in for Compensation: records each call's time stamp and cut flag; a call can be
+    held until released."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[float, bool | None]] = []
+        self.hold = threading.Event()
+        self.hold.set()
+        self.entered = threading.Event()
+
+    def __call__(
+        self, thumb: np.ndarray, eye: Any, t: float, cut: bool | None = None, early: Any = None
+    ) -> Any:
+        if cut and early is not None:
+            early(("first stage", t))
+        self.entered.set()
+        self.hold.wait(10.0)
+        self.calls.append((t, cut))
+        return ("params", t)
+
+
+def _wait(cond: Any, limit: float = 5.0) -> bool:
+    end = time.monotonic() + limit
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def _worker(comp: _Comp, period: float) -> ToneWorker:
+    return ToneWorker(cast(Compensation, comp), period)
+
+
+def test_a_cut_ends_the_rest_and_is_computed_as_a_cut() -> None:
+    comp = _Comp()
+    worker = _worker(comp, period=60.0)  # a rest far longer than the test waits
+    thumb = np.zeros((4, 8, 3), np.uint8)
+    try:
+        worker.submit(thumb, EYE, 1.0, False)
+        assert _wait(lambda: len(comp.calls) == 1)
+        worker.submit(thumb, EYE, 2.0, False)  # within the shot: waits for the rest
+        time.sleep(0.3)
+        assert len(comp.calls) == 1
+        worker.submit(thumb, EYE, 3.0, True)  # a cut: computed now, as a cut
+        assert _wait(lambda: len(comp.calls) == 2)
+        assert comp.calls[1] == (3.0, True)
+    finally:
+        worker.stop()
+
+
+def test_a_cut_survives_a_later_request_of_the_same_shot() -> None:
+    comp = _Comp()
+    worker = _worker(comp, period=60.0)
+    thumb = np.zeros((4, 8, 3), np.uint8)
+    try:
+        comp.hold.clear()
+        worker.submit(thumb, EYE, 1.0, False)
+        assert comp.entered.wait(5.0)  # the worker is busy with the first request
+        worker.submit(thumb, EYE, 2.0, True)  # the cut's frame
+        worker.submit(thumb, EYE, 3.0, False)  # the next frame replaces it, still a cut
+        comp.hold.set()
+        assert _wait(lambda: len(comp.calls) == 2)
+        assert comp.calls == [(1.0, False), (3.0, True)]
+    finally:
+        worker.stop()
+
+
+def test_a_cuts_first_stage_is_shown_before_its_call_ends() -> None:
+    comp = _Comp()
+    worker = _worker(comp, period=60.0)
+    thumb = np.zeros((4, 8, 3), np.uint8)
+    try:
+        worker.compute(thumb, EYE, 0.0, True)
+        comp.entered.clear()
+        comp.hold.clear()
+        worker.submit(thumb, EYE, 1.0, True)
+        assert comp.entered.wait(5.0)  # the call is under way, held
+        latest = worker.latest()
+        assert latest is not None and latest[0] == ("first stage", 1.0)
+        comp.hold.set()
+        assert _wait(lambda: (worker.latest() or (None,))[0] == ("params", 1.0))
+    finally:
+        comp.hold.set()
+        worker.stop()
