@@ -1,6 +1,7 @@
 """The commands end to end on small sizes, and their error messages."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -225,3 +226,22 @@ def test_render_adaptive_on_the_gl_backend(calib, tmp_path):
     d = np.abs(outs["gl"] - outs["cpu"])
     assert d.max() <= 3 and np.mean(d > 1) <= 0.001
     assert outs["gl"].std() > 5
+
+
+def test_the_hardware_estimate_counts_the_materials(tmp_path: Path) -> None:
+    """`evaluate --protocol hardware --materials DIR` runs 6 rows per screen (glossy magenta
+    and each material): the time it announces grows with the folder (it said the one-screen
+    figure whatever the folder held)."""
+    import argparse
+
+    from viewcomp.commands.evaluate import _estimate
+
+    def said(materials: Path | None) -> float:
+        ns = argparse.Namespace(protocol="hardware", materials=materials, space="projector")
+        text = _estimate(ns, (320, 160))
+        value = float(text.split()[1])
+        return value * 60 if text.split()[2] == "minutes" else value
+
+    for name in ("a", "b", "c"):
+        (tmp_path / f"{name}.npz").write_bytes(b"")
+    assert said(tmp_path) == pytest.approx(4 * said(None))
