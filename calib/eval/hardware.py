@@ -219,10 +219,12 @@ def hardware(
     """The hardware protocol over ``screens`` (colour names and material paths) x
     ``profiles`` x ``captures``; returns ``{"hardware": rows, "hardware_checks": ...}``."""
     ideal: dict[str, Any] = {}
-    rows = [
-        hardware_case(p, s, c, size, seed, ideal=ideal, progress=progress)
-        for s in screens
-        for p in profiles
-        for c in captures
-    ]
+    cases = [(p, s, c) for s in screens for p in profiles for c in captures]
+    rows: list[dict[str, Any]] = []
+    t0 = time.perf_counter()
+    for p, s, c in cases:
+        rows.append(hardware_case(p, s, c, size, seed, ideal=ideal, progress=progress))
+        if progress:  # the rows so far at their mean pace
+            left = (time.perf_counter() - t0) / len(rows) * (len(cases) - len(rows))
+            progress(f"hardware: {len(rows)}/{len(cases)} rows, about {left / 60:.0f} min left")
     return {"hardware": rows, "hardware_checks": check_hardware(rows)}

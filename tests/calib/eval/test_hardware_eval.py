@@ -45,3 +45,20 @@ def test_dslr_capture_on_glossy_magenta_matches_ideal_captures() -> None:
     assert row["capture_seconds"] > 30.0
     for a in ("60", "125"):  # compensation helps at all
         assert row["emulated"][a]["compensated"] < row["emulated"][a]["original"]
+
+
+def test_the_protocol_says_its_rows_and_the_time_left(monkeypatch) -> None:
+    """A run of 48 rows takes an hour or more: after each row it says how many are done and
+    about how long the rest takes."""
+    import viewcomp.calib.eval.hardware as hw
+
+    def fake_case(profile: str, screen: str, capture: str, *args: Any, **kw: Any) -> dict:
+        return _row(profile, 11.0, 10.0)
+
+    monkeypatch.setattr(hw, "hardware_case", fake_case)
+    said: list[str] = []
+    rep = hw.hardware(["magenta", "m.npz"], profiles=("webcam", "dslr"), progress=said.append)
+    assert len(rep["hardware"]) == 8
+    counts = [line.split()[1] for line in said]
+    assert counts == [f"{i}/8" for i in range(1, 9)], said
+    assert all("min left" in line for line in said)
