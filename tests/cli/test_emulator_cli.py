@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.support.materials import MEASURED
 from viewcomp.calib.world.rig import load_rig
 from viewcomp.cli import main
 
@@ -91,15 +92,7 @@ def test_a_highlight_one_refresh_period_clips_is_taken_with_the_projector_dimmed
     assert main(["calibrate", str(out), "-o", str(tmp_path / "b.npz")]) == 0
 
 
-MATERIALS = (
-    "bluebook",
-    "green-plastic",
-    "red-plastic",
-    "red-specular-plastic",
-    "satin_gold",
-    "spectralon",
-    "specular-orange-phenolic",
-)
+MATERIALS = MEASURED
 
 
 @pytest.mark.slow

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.support.materials import MEASURED
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.geo.framematch import MIN_MATCH, frame_edges, frame_shift, lit_region
 from viewcomp.calib.geo.rectify import calibrate_geometry, rectify_capture_set
@@ -50,15 +51,7 @@ from viewcomp.calib.world.rig import Rig
 from viewcomp.cli import main
 
 SIZE = (160, 80)  # projector; the camera 320x180. The highlight fooled the old check here too
-MATERIALS = (
-    "bluebook",
-    "green-plastic",
-    "red-plastic",
-    "red-specular-plastic",
-    "satin_gold",
-    "spectralon",
-    "specular-orange-phenolic",
-)
+MATERIALS = MEASURED
 GLOSSY = "red-specular-plastic"  # the material of the report: 6.3 px "moved" at 320x160
 
 
