@@ -157,12 +157,13 @@ def frame_shift(reference: FrameEdges, image: FrameEdges) -> Shift:
     dy = (iy if iy <= h // 2 else iy - h) + _vertex(
         cy.surface[(iy - 1) % h, ix], cy.surface[iy, ix], cy.surface[(iy + 1) % h, ix]
     )
+    match = 0.0
     for _ in range(2):  # re-centre on the estimate: the parabola is exact near its vertex
         sx = cx.around(dx, dy)
         sy = cy.around(dx, dy)
         dx += _vertex(sx[0, -1], sx[0, 0], sx[0, 1])
         dy += _vertex(sy[-1, 0], sy[0, 0], sy[1, 0])
-    match = 0.5 * (float(cx.around(dx, dy)[0, 0]) + float(cy.around(dx, dy)[0, 0]))
+        match = 0.5 * (float(sx[0, 0]) + float(sy[0, 0]))  # the last step moves < 0.05 px
     return Shift(float(dx), float(dy), float(np.clip(match, 0.0, 1.0)))
 
 

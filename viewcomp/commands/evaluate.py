@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from viewcomp.commands._common import add_simulator_arguments
 
@@ -67,7 +66,9 @@ def _estimate(args: argparse.Namespace, size: tuple[int, int] | None) -> str:
     base = 320 * 160 if small else 640 * 320
     seconds = sum(MEASURED_S[p] for p in parts) * (w * h) / base
     if args.protocol == "hardware" and args.materials:  # glossy magenta and each material
-        seconds *= 1 + len(list(Path(args.materials).glob("*.npz")))
+        from viewcomp.calib.eval.materials import material_files
+
+        seconds *= 1 + len(material_files(args.materials))
     span = f"about {seconds / 60:.1f} minutes" if seconds >= 90 else f"about {seconds:.0f} s"
     note = (
         "" if args.protocol != "all" else "; the sweep is the slow part (--protocol table2: ~35 s)"

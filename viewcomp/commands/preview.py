@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from viewcomp.commands._common import add_eye_arguments, add_tone_arguments, parse_vec3
+
+if TYPE_CHECKING:
+    from viewcomp.calib.fit.calibrate import Calibration
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -63,19 +67,15 @@ def _video_frames(path: Path, grid: tuple[int, int], n: int) -> list[tuple[float
     return [(planes[i].time, yuv420p_to_rgb(planes[i])) for i in idx]
 
 
-def _write_reach(cal: object, eyes: list, path: Path) -> None:
+def _write_reach(cal: Calibration, eyes: list, path: Path) -> None:
     """The per-pixel reach picture at each eye (calib/eval/reach_picture.py)."""
     import numpy as np
 
     from viewcomp.calib.eval.reach_picture import reach_picture
-    from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.imageio import write_png
+    from viewcomp.calib.world.eye import eye_to_polar
 
-    assert isinstance(cal, Calibration)
-    rows = []
-    for eye in eyes:
-        angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
-        rows.append((f"seen at {angle:.0f} deg", np.asarray(eye, np.float64)))
+    rows = [(f"seen at {eye_to_polar(e)[0]:.0f} deg", np.asarray(e, np.float64)) for e in eyes]
     title = "per-pixel reach: the highest and lowest colour each projector pixel can produce"
     write_png(path, reach_picture(cal, rows, title))
     print(f"wrote {path}: the per-pixel reach at {len(rows)} eye(s)")
@@ -90,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
     from viewcomp.calib.eval.preview import METHOD_NAMES, predict, preview_picture
     from viewcomp.calib.fit.calibrate import Calibration
     from viewcomp.calib.io.imageio import read_rgb8, write_png
+    from viewcomp.calib.world.eye import eye_to_polar
     from viewcomp.rt.media.frames import fit_rgb
     from viewcomp.rt.render.pipeline import is_image
 
@@ -130,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     previews = []
     for label, rgb in images:
         for eye in eyes:
-            angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
+            angle = eye_to_polar(eye)[0]
             where = f"{angle:.0f} deg, eye ({eye[0]:+.3f}, {eye[1]:+.3f}, {eye[2]:+.3f}) m"
             p = predict(comp, np.ascontiguousarray(rgb, dtype=np.uint8), eye, audience)
             previews.append(
