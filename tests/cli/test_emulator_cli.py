@@ -12,6 +12,12 @@ from viewcomp.calib.world.rig import load_rig
 from viewcomp.cli import main
 
 
+def _on_material(out: Path, profile: str, material: str, *extra: str) -> list[str]:
+    """`viewcomp capture OUT --emulate PROFILE --material M` at 160x80, 2 frames, seed 0."""
+    argv = ["capture", str(out), "--emulate", profile, "--material", material]
+    return [*argv, "--sim-size", "160x80", "--frames", "2", "--seed", "0", "--yes", *extra]
+
+
 @pytest.mark.parametrize(
     ("argv", "said"),
     [
@@ -82,8 +88,7 @@ def test_a_highlight_one_refresh_period_clips_is_taken_with_the_projector_dimmed
     pattern dimmed and the set is written and calibrates."""
     out = tmp_path / "c"
     material = str(materials_dir / "green-plastic.npz")
-    argv = ["capture", str(out), "--emulate", "mono12", "--material", material]
-    argv += ["--sim-size", "160x80", "--frames", "2", "--seed", "0", "--yes", "--hdr"]
+    argv = _on_material(out, "mono12", material, "--hdr")
     assert main(argv) == 0, capsys.readouterr().err
     err = capsys.readouterr().err
     assert "the projector's drive dimmed" in err, err
@@ -109,8 +114,7 @@ def test_the_webcam_on_a_measured_material_is_not_refused_as_moved(
     if not material.is_file():
         pytest.skip(f"measured material {material.name} not in {materials_dir}")
     out = tmp_path / "c"
-    argv = ["capture", str(out), "--emulate", "webcam", "--material", str(material)]
-    argv += ["--sim-size", "160x80", "--frames", "2", "--seed", "0", "--yes"]
+    argv = _on_material(out, "webcam", str(material))
     rc = main([*argv, "--hdr"] if hdr else argv)
     err = capsys.readouterr().err
     assert not any(w in err for w in ("moved", "lies ", "no clear match")), err
@@ -132,8 +136,7 @@ def test_a_dslr_whose_shortest_stop_clips_takes_it_with_the_projector_dimmed(
     the pattern dimmed, and the set is written and calibrates."""
     out = tmp_path / "c"
     material = str(materials_dir / "bluebook.npz")
-    argv = ["capture", str(out), "--emulate", "dslr", "--material", material]
-    argv += ["--sim-size", "160x80", "--frames", "2", "--seed", "0", "--yes", "--hdr"]
+    argv = _on_material(out, "dslr", material, "--hdr")
     assert main(argv) == 0, capsys.readouterr().err
     err = capsys.readouterr().err
     assert "HDR bracket: relative exposures 1, 1/4 " in err, err
