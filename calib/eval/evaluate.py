@@ -81,6 +81,8 @@ class World:
     lam: float
     space: str = "projector"  # "camera": captures seen by the simulated camera, rectified
     camera: SimCamera | None = None  # the simulated camera, for space = "camera"
+    #: calibrate's colour guide (None: its default for the space; 0: none)
+    guide_px: int | None = None
 
     @classmethod
     def make(
@@ -142,10 +144,11 @@ class World:
 
             raw = capture_camera_patterns(self.camera, screen)
             rig = written_rig(self.sim.rig)  # the lens is for calibrate to estimate
-            cal = calibrate(capture_set_from_raw(rig, self.white_raw, raw))
+            cs = capture_set_from_raw(rig, self.white_raw, raw)
         else:
             raw = capture_patterns(self.sim, screen)
-            cal = calibrate(capture_set_from_raw(self.sim.rig, self.white_raw, raw))
+            cs = capture_set_from_raw(self.sim.rig, self.white_raw, raw)
+        cal = calibrate(cs, guide_px=self.guide_px)
         return Case(
             name,
             screen,

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from viewcomp.calib.errors import FitError
+from viewcomp.calib.fit.colourguide import guide_radius_for
 from viewcomp.calib.fit.paper import PaperCalibration, calibrate_paper
 from viewcomp.calib.fit.pixel import (
     DEFAULT_SMOOTH_PX,
@@ -109,8 +110,11 @@ def calibrate(
     lobe_param: str | None = None,
     maps: dict[str, np.ndarray] | None = None,
     log: Callable[[str], None] | None = None,
+    guide_px: int | None = None,
 ) -> Calibration:
-    """Calibrate both methods from a loaded capture set.
+    """Calibrate both methods from a loaded capture set (``smooth_px``, ``guide_px``:
+    :func:`~viewcomp.calib.fit.pixel.calibrate_pixel`'s; ``guide_px`` None: the set's
+    space's, :func:`~viewcomp.calib.fit.colourguide.guide_radius_for`).
 
     How good the captures were (exposure, noise, the per-pixel model's residual on the ramp:
     :func:`~viewcomp.calib.fit.quality.capture_quality`) goes to ``info["quality"]``; given a
@@ -118,12 +122,10 @@ def calibrate(
     ``"ramp_residual"`` (for `calibrate --report`). ``log`` hears each stage as it starts.
 
     Captures in camera space (``[capture] space = "camera"``) are first rectified onto the
-    projector grid (:mod:`viewcomp.calib.geo.rectify`: chessboard + Gray code); the geometric
-    statistics go to ``info["geometry"]``.
-
-    Pixels clipped in any capture (8-bit at the top code) are left out of the lobe fit and of
-    the paper's statistics; :func:`~viewcomp.calib.io.checks.check_captures` refuses captures
-    with more clipped than that can absorb, naming ``--hdr``.
+    projector grid (:mod:`viewcomp.calib.geo.rectify`: chessboard + Gray code; statistics in
+    ``info["geometry"]``). Pixels clipped in any capture (8-bit at the top code) are left out
+    of the lobe fit and of the paper's statistics; more than that can absorb is refused
+    (:func:`~viewcomp.calib.io.checks.check_captures`, naming ``--hdr``).
 
     Raises:
         FitError: a capture that makes the per-pixel method impossible, naming it and what
@@ -131,13 +133,12 @@ def calibrate(
             the per-pixel method alone and ``info["paper_error"]`` says why.
     """
     say = log or (lambda _msg: None)
+    guide_px = guide_radius_for(cs.rig.capture.space) if guide_px is None else guide_px
     geometry_stats = None
     mono = _is_mono(cs)
     if cs.rig.capture.space != "projector":
         say("rectifying the camera's captures onto the projector grid (chessboard, Gray code)")
-        from viewcomp.calib.geo.rectify import (
-            rectify_capture_set,  # camera frames -> the projector grid
-        )
+        from viewcomp.calib.geo.rectify import rectify_capture_set  # camera -> projector grid
 
         cs, geometry_stats = rectify_capture_set(cs, check_order=not mono)
     cs, mono_info = _per_primary_set(cs, say) if mono else (cs, {})
@@ -153,11 +154,12 @@ def calibrate(
         raise FitError(f"white|screen/{missing[0]}", "missing from the capture set")
     clipped = cs.clipped_pixels()
     say("fitting the per-pixel method (colour mixing, response, specular lobe)")
-    pixel = calibrate_pixel(white, screen, geometry, smooth_px, ~clipped, lobe_param)
+    pixel = calibrate_pixel(white, screen, geometry, smooth_px, ~clipped, lobe_param, guide_px)
     info: dict[str, Any] = {
         "captures": str(cs.path),
         "has_black": "black" in screen,
         "smooth_px": smooth_px,
+        "colour_guide_px": guide_px,
         "clipped_pixels": int(np.count_nonzero(clipped)),
         "quality": capture_quality(pixel, white, screen),
     }

@@ -7,7 +7,8 @@ colour-mixing matrix and ambient:
 
 where f is the projector's response (per channel, global: a property of the projector,
 normalised to f(0) = 0, f(255) = 1), W~(x) the colour mixing from per-pixel differences of
-the red/green/blue patterns against gray (smoothed), D(x) the per-pixel gain from the gray
+the red/green/blue patterns against gray (smoothed, and smoothed further where the screen's
+colour is uniform: :mod:`~viewcomp.calib.fit.colourguide`), D(x) the per-pixel gain from the gray
 pattern, A(x) the black capture (or an estimate without one).
 
 The specular lobe is fitted as a diffuse baseline plus a tabulated lobe relative to the white
@@ -30,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viewcomp.calib.errors import FitError
+from viewcomp.calib.fit.colourguide import colour_guide, smooth_by_colour
 from viewcomp.calib.fit.lobe import LobeFit, black_lobe_share, fit_lobe
 from viewcomp.calib.fit.paper import (
     CHANNEL_PATTERNS,
@@ -142,8 +144,14 @@ def _smooth(img: np.ndarray, sigma: float) -> np.ndarray:
     return gaussian_filter(img, sigma=(sigma, sigma, 0), mode="nearest")
 
 
-def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndarray:
-    """Per-pixel W~(x) (H, W, 3, 3) from smoothed dL_j(x) = L_j(x) - L_U(x) (Eq. 16 per pixel).
+def mixing_tilde(
+    caps: dict[str, np.ndarray], sigma: float, sub: str, guide_px: int = 0
+) -> np.ndarray:
+    """Per-pixel W~(x) (H, W, 3, 3) from smoothed dL_j(x) = L_j(x) - L_U(x) (Eq. 16 per pixel),
+    each dL_j smoothed further where the screen's colour is uniform
+    (:func:`~viewcomp.calib.fit.colourguide.smooth_by_colour`, window radius ``guide_px``
+    projector px; 0, the default: not) before its ratio is taken: a ratio of window means,
+    not a mean of ratios, so a pixel whose own rise is small does not weigh more.
 
     Raises:
         FitError: a colour pattern clearly darker than gray in its own channel over more than
@@ -160,6 +168,7 @@ def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndar
     except FitError as exc:
         raise FitError(f"{sub}/{exc.capture}", exc.reason) from None
     wt = np.empty((h, w, 3, 3), np.float32)
+    guide = colour_guide(caps["gray"]) if guide_px else None
     for j, name in enumerate(CHANNEL_PATTERNS):
         d = _smooth(caps[name] - caps["gray"], sigma)
         own = d[..., j]
@@ -172,6 +181,9 @@ def mixing_tilde(caps: dict[str, np.ndarray], sigma: float, sub: str) -> np.ndar
                 f"darker than {sub}/gray in its own channel over {np.mean(darker):.0%} of "
                 "the image: patterns in the wrong order, or the camera's white balance moved",
             )
+        if guide is not None:
+            d = smooth_by_colour(d, guide, guide_px)
+            own = d[..., j]
         # A channel the screen barely reflects (a green screen's red) leaves its pattern's
         # rise within the camera's noise at some pixels: no mixing is measured there, so they
         # take the image's median mixing of that pattern instead of a ratio to noise.
@@ -221,10 +233,11 @@ def projector_response(white: dict[str, np.ndarray], wt: np.ndarray, amb: np.nda
 
 
 def screen_model(
-    caps: dict[str, np.ndarray], f_lut: np.ndarray, sigma: float, sub: str
+    caps: dict[str, np.ndarray], f_lut: np.ndarray, sigma: float, sub: str, guide_px: int = 0
 ) -> ScreenModel:
-    """W(x) = W~(x) diag(D(x)), D from the gray capture, A from black (or estimated)."""
-    wt = mixing_tilde(caps, sigma, sub)
+    """W(x) = W~(x) diag(D(x)), D from the gray capture, A from black (or estimated);
+    ``guide_px``: :func:`mixing_tilde`'s."""
+    wt = mixing_tilde(caps, sigma, sub, guide_px)
     amb, measured = _estimate_ambient(caps, sigma)
     f110 = np.array([np.interp(GRAY_LEVEL, np.arange(256), f_lut[:, c]) for c in range(3)])
     d = decouple(wt, caps["gray"], amb) / f110.astype(np.float32)
@@ -250,6 +263,7 @@ def calibrate_pixel(
     smooth_px: float = DEFAULT_SMOOTH_PX,
     valid: np.ndarray | None = None,
     lobe_param: str | None = None,
+    guide_px: int = 0,
 ) -> PixelCalibration:
     """Build the per-pixel calibration from linearised captures on the projector grid.
 
@@ -260,13 +274,15 @@ def calibrate_pixel(
         smooth_px: Gaussian sigma (projector pixels) for the colour-mixing ratios and ambient.
         valid: (H, W) bool, pixels the lobe fit may use (False: clipped in some capture).
         lobe_param: force the lobe's parametrisation ("half" or "mirror"); None: the better.
+        guide_px: the colour mixing also smoothed where the screen's colour is uniform, over
+            windows of this radius (projector px; 0: not; :mod:`~.colourguide`).
     """
-    wt_w = mixing_tilde(white, smooth_px, "white")
+    wt_w = mixing_tilde(white, smooth_px, "white", guide_px)
     amb_w, _ = _estimate_ambient(white, smooth_px)
     f_lut, misfit = projector_response(white, wt_w, amb_w)
     del wt_w, amb_w  # screen_model fits the white screen's own again; free these first
-    wm = screen_model(white, f_lut, smooth_px, "white")
-    cm = screen_model(screen, f_lut, smooth_px, "screen")
+    wm = screen_model(white, f_lut, smooth_px, "white", guide_px)
+    cm = screen_model(screen, f_lut, smooth_px, "screen", guide_px)
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
     lobe = fit_lobe(s, geometry, valid, lobe_param)
     share = np.zeros(3)

@@ -414,6 +414,11 @@ CASES = [
         "finite number >= 0",
     ),
     Case("seed-negative", ["simulate", "s", "--seed=-1"], "whole number >= 0"),
+    Case(
+        "colour-guide-fraction",
+        ["calibrate", "caps", "-o", "x.vcb", "--colour-guide-px", "2.5"],
+        "expected a whole number",
+    ),
     Case("screen-nan", ["simulate", "s", "--screen", "nan,0,0"], "R,G,B in 0..1"),
     Case("screen-over-1", ["simulate", "s", "--screen", "2,2,2"], "R,G,B in 0..1"),
     Case("size-huge", ["patterns", "p", "--size", "100000x100000"], "at most 16384 pixels"),

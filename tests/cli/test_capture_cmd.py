@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from viewcomp.calib.fit.calibrate import Calibration
+from viewcomp.calib.fit.colourguide import GUIDE_RADIUS_PX
 from viewcomp.calib.hw.camlock import lock_controls
 from viewcomp.calib.hw.frames import average_frames
 from viewcomp.calib.hw.interface import DeviceError, Frame
@@ -90,6 +91,10 @@ def test_capture_and_calibrate_end_to_end_through_the_cli(tmp_path: Path, capsys
     geo = cal.info["geometry"]
     assert geo["chessboard"]["zhang_rms_px"] < 0.5 and geo["map"]["chessboard_rms_px"] < 0.5
     assert cal.shape == (SIZE[1], SIZE[0])
+    # a camera's set: the colour mixing guided by the screen's colour unless told otherwise
+    assert cal.info["colour_guide_px"] == GUIDE_RADIUS_PX
+    assert main(["calibrate", str(out), "-o", str(bundle), "--colour-guide-px", "0"]) == 0
+    assert Calibration.load(bundle).info["colour_guide_px"] == 0
 
 
 def test_procedure_prompts_for_each_screen_and_writes_the_plan(tmp_path: Path) -> None:

@@ -45,8 +45,8 @@ def finite(text: str) -> float:
     return v
 
 
-def seed(text: str) -> int:
-    """An argparse type: an integer >= 0 (a random seed)."""
+def nonnegative_int(text: str) -> int:
+    """An argparse type: an integer >= 0."""
     try:
         v = int(text)
     except ValueError:
@@ -54,6 +54,10 @@ def seed(text: str) -> int:
     if v < 0:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
     return v
+
+
+#: An argparse type: a random seed, an integer >= 0.
+seed = nonnegative_int
 
 
 def positive(text: str) -> float:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from viewcomp.commands._common import nonnegative
+from viewcomp.commands._common import nonnegative, nonnegative_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,6 +45,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "ambient (default 3)",
     )
     p.add_argument(
+        "--colour-guide-px",
+        type=nonnegative_int,
+        default=None,
+        metavar="PX",
+        help="smooth the per-pixel colour mixing over windows of this radius (projector "
+        "pixels) wherever the screen's colour is uniform, keeping its colour edges: a guided "
+        "filter led by the screen's chromaticity, against a camera's noise. Default: 32 for "
+        "camera-space captures, 0 (not) for projector-space ones",
+    )
+    p.add_argument(
         "--report",
         metavar="DIR",
         default=None,
@@ -72,7 +82,13 @@ def run(args: argparse.Namespace) -> int:
     lobe_param = None if args.lobe == "auto" else args.lobe
     maps: dict = {}
     cal = calibrate(
-        cs, fit_mode=args.paper_fit, smooth_px=smooth, lobe_param=lobe_param, maps=maps, log=log
+        cs,
+        fit_mode=args.paper_fit,
+        smooth_px=smooth,
+        lobe_param=lobe_param,
+        maps=maps,
+        log=log,
+        guide_px=args.colour_guide_px,
     )
     del cs  # the captures (1.2 GB at 3840x2160) are not needed to write the bundle
     log(f"writing {args.output}")

@@ -34,6 +34,7 @@ def world():
 
 def test_per_pixel_fits_recover_the_simulators_truth(world):
     sim, screen, _, _, cal = world
+    assert cal.info["colour_guide_px"] == 0  # a projector-space set: the mixing per pixel
     lobe = cal.pixel.lobe
     # The lobe's change from the camera to an eye, as the simulator's Phong lobe makes it
     # (relative to the white screen's albedo 0.85).
