@@ -15,18 +15,20 @@ channel the screen barely reflects) does not weigh more than its neighbours.
 
 The guide is the gray capture's chromaticity, each channel over the pixel's mean of the three
 (1, 1, 1 for a neutral colour; a highlight's white shows as its own colour), after a 1 px
-Gaussian against the camera's noise.
+Gaussian against the camera's noise; a channel whose chromaticity is noisier than
+:data:`SPREAD_FLOOR` (a channel the screen barely reflects) weighs less in it
+(:func:`colour_guide`).
 
 Measured through ``viewcomp evaluate --protocol hardware``'s rows (320x160, 8 frames, seed 0;
 mean dE of the compensated image over the ideal pipeline's at 60 / 125 degrees, before ->
 with the guide): the emulated webcam in 8 bits on glossy magenta 1.10 / 1.08 -> 1.03 / 1.02,
 orange phenolic 1.19 / 1.19 -> 1.12 / 1.13, spectralon 2.60 / 2.50 -> 1.57 / 1.55, green
 plastic 1.16 / 1.16 -> 1.17 / 1.18; in HDR satin_gold 1.29 / 1.24 -> 1.13 / 1.11,
-spectralon 3.13 / 2.96 -> 2.30 / 2.21 (docs/EVALUATION.md has every row). A radius of 16 px
-gave about half the gain of 32 on the rows tried (the built-in textured screen 1.30 -> 1.19
-at 16, 1.16 at 32, 8 bits), whose colour edges it keeps. The box windows leave a trace: a
-pixel far off its neighbours (a camera's colour fringe along the frame's edge) shifts every
-window it is in, seen as bands within a radius of the frame's edges on spectralon.
+spectralon 3.13 / 2.96 -> 2.30 / 2.21 (docs/EVALUATION.md has every row). On the built-in
+textured screen, whose colour edges it keeps (8 bits): 1.30 / 1.35 -> 1.16 / 1.19 with a
+radius of 32 px, 1.19 / 1.23 with 16. The box windows leave a trace: a pixel far off its
+neighbours (a camera's colour fringe along the frame's edge) shifts every window it is in,
+seen as bands within a radius of the frame's edges on spectralon.
 """
 
 from __future__ import annotations
