@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewcomp.calib.fit.colourguide import SPREAD_FLOOR, colour_guide, smooth_by_colour
+from viewcomp.calib.fit.colourguide import colour_guide, guided_filter, smooth_by_colour
 from viewcomp.calib.fit.pixel import mixing_tilde
 
 H, W = 96, 192
@@ -89,8 +89,7 @@ def test_a_colour_edge_keeps_its_step() -> None:
 def test_the_guide_is_the_chromaticity_and_radius_zero_is_the_identity() -> None:
     gray = np.zeros((4, 16, 3), np.float32)
     gray[:, :8] = (0.2, 0.4, 0.6)
-    # noise-free: the chromaticity over the least noise spread
-    guide = colour_guide(gray) * SPREAD_FLOOR
+    guide = colour_guide(gray)
     assert np.allclose(guide[:, 0], (0.5, 1.0, 1.5), atol=1e-5)
     assert np.allclose(guide[:, -1], 1.0)  # dark: neutral
     img = np.random.default_rng(0).random((4, 16, 2)).astype(np.float32)
@@ -99,3 +98,17 @@ def test_the_guide_is_the_chromaticity_and_radius_zero_is_the_identity() -> None
         smooth_by_colour(img, guide, -1)
     with pytest.raises(ValueError, match="gray"):
         colour_guide(gray[..., :2])
+
+
+@pytest.mark.parametrize("eps", [1e-6, 1e-4, 1e-2])
+def test_the_guided_filter_follows_the_closed_form(eps: float) -> None:
+    """In a region where the guide varies by noise of variance v along one channel and not at
+    all along the others, the filter of the guide itself is the window mean plus
+    v / (v + eps) of each pixel's deviation (He et al.'s closed form)."""
+    rng = np.random.default_rng(0)
+    v = 1e-4
+    i = 1.0 + np.sqrt(v) * rng.standard_normal((200, 200))
+    guide = np.dstack([i, np.ones_like(i), np.ones_like(i)])
+    q = guided_filter(guide, i[..., None], 10, eps)[..., 0]
+    slope = np.polyfit((i - i.mean()).ravel(), (q - q.mean()).ravel(), 1)[0]
+    assert slope == pytest.approx(v / (v + eps), abs=0.01)
