@@ -34,6 +34,8 @@ seen as bands within a radius of the frame's edges on spectralon.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -77,48 +79,63 @@ def _box(img: np.ndarray, r: int) -> np.ndarray:
     return np.asarray(out).reshape(img.shape)
 
 
-def guided_filter(guide: np.ndarray, src: np.ndarray, r: int, eps: float) -> np.ndarray:
-    """He's guided filter with a colour guide: per window, ``src`` (H, W, C) regressed on
-    ``guide`` (H, W, 3), the 3x3 covariance regularised by ``eps`` I (units of the guide
-    squared); each pixel takes the mean of its windows' fits. (H, W, C) float64.
+class GuidedFilter:
+    """He's guided filter with a colour guide (H, W, 3): per window of radius ``r``, an
+    image regressed on the guide, the guide's 3x3 covariance regularised by ``eps`` I (units
+    of the guide squared); each pixel takes the mean of its windows' fits. The guide's
+    window statistics are computed once, for every image filtered with it.
 
     In float64 throughout: the guide's variance within a window is a small difference of
     large sums, which float32 loses when the guide varies little."""
-    g = np.asarray(guide, np.float64)
-    g = g - g.reshape(-1, 3).mean(axis=0)  # centred: the window sums stay small
-    p = np.asarray(src, np.float64)
-    mg = _box(g, r)
-    mp = _box(p, r)
-    cov_g = np.empty((*g.shape[:2], 3, 3))
-    for i in range(3):
-        for j in range(i, 3):
-            cov_g[..., i, j] = cov_g[..., j, i] = _box(g[..., i] * g[..., j], r) - (
-                mg[..., i] * mg[..., j]
-            )
-    cov_gp = np.empty((*g.shape[:2], 3, p.shape[-1]))
-    for i in range(3):
-        cov_gp[..., i, :] = _box(g[..., i : i + 1] * p, r) - mg[..., i : i + 1] * mp
-    cov_g += eps * np.eye(3)
-    a = np.linalg.solve(cov_g, cov_gp)  # (H, W, 3, C)
-    del cov_g, cov_gp
-    b = mp - np.einsum("hwic,hwi->hwc", a, mg)
-    ma = _box(a.reshape(*a.shape[:2], -1), r).reshape(a.shape)
-    return np.asarray(np.einsum("hwic,hwi->hwc", ma, g) + _box(b, r))
+
+    def __init__(self, guide: np.ndarray, r: int, eps: float) -> None:
+        g = np.asarray(guide, np.float64)
+        self.g = g - g.reshape(-1, 3).mean(axis=0)  # centred: the window sums stay small
+        self.r = int(r)
+        self.mg = _box(self.g, self.r)
+        cov = np.empty((*g.shape[:2], 3, 3))
+        for i in range(3):
+            for j in range(i, 3):
+                cov[..., i, j] = cov[..., j, i] = _box(self.g[..., i] * self.g[..., j], r) - (
+                    self.mg[..., i] * self.mg[..., j]
+                )
+        cov += eps * np.eye(3)
+        self.inv = np.linalg.inv(cov)  # (H, W, 3, 3)
+
+    def __call__(self, src: np.ndarray) -> np.ndarray:
+        """``src`` (H, W, C) filtered: (H, W, C) float64."""
+        g, r = self.g, self.r
+        p = np.asarray(src, np.float64)
+        mp = _box(p, r)
+        cov_gp = np.empty((*p.shape[:2], 3, p.shape[-1]))
+        for i in range(3):
+            cov_gp[..., i, :] = _box(g[..., i : i + 1] * p, r) - self.mg[..., i : i + 1] * mp
+        a = np.einsum("hwij,hwjc->hwic", self.inv, cov_gp)  # (H, W, 3, C)
+        del cov_gp
+        b = mp - np.einsum("hwic,hwi->hwc", a, self.mg)
+        ma = _box(a.reshape(*a.shape[:2], -1), r).reshape(a.shape)
+        return np.asarray(np.einsum("hwic,hwi->hwc", ma, g) + _box(b, r))
 
 
-def smooth_by_colour(
-    img: np.ndarray, guide: np.ndarray, radius: int | None = None, eps: float | None = None
-) -> np.ndarray:
-    """The guided filter of ``img`` (H, W, C) float by ``guide`` (H, W, 3) from
-    :func:`colour_guide`: (H, W, C) float32. ``radius`` (projector px, >= 0; None:
-    :data:`GUIDE_RADIUS_PX`; 0: ``img`` as it is) and ``eps`` (None: :data:`GUIDE_EPS`)."""
+def guided_filter(guide: np.ndarray, src: np.ndarray, r: int, eps: float) -> np.ndarray:
+    """``src`` (H, W, C) through :class:`GuidedFilter` of ``guide`` (H, W, 3): (H, W, C)
+    float64."""
+    return GuidedFilter(guide, r, eps)(src)
+
+
+def colour_smoother(
+    gray: np.ndarray, radius: int | None = None, eps: float | None = None
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The guided filter of images (H, W, C) by the screen's chromaticity
+    (:func:`colour_guide` of its gray capture (H, W, 3) linear), returning float32:
+    ``radius`` (projector px, >= 0; None: :data:`GUIDE_RADIUS_PX`; 0: images as they are)
+    and ``eps`` (None: :data:`GUIDE_EPS`)."""
     r = GUIDE_RADIUS_PX if radius is None else int(radius)
     if r < 0:
         raise ValueError(f"radius must be >= 0, got {r}")
-    out = np.ascontiguousarray(img, np.float32)
-    h, w = out.shape[:2]
+    h, w = np.shape(gray)[:2]
     r = min(r, (min(h, w) - 1) // 2)
     if r <= 0:
-        return out
-    e = GUIDE_EPS if eps is None else float(eps)
-    return np.asarray(guided_filter(guide, out, r, e), np.float32)
+        return lambda img: np.ascontiguousarray(img, np.float32)
+    flt = GuidedFilter(colour_guide(gray), r, GUIDE_EPS if eps is None else float(eps))
+    return lambda img: np.asarray(flt(img), np.float32)

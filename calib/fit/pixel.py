@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viewcomp.calib.errors import FitError
-from viewcomp.calib.fit.colourguide import colour_guide, smooth_by_colour
+from viewcomp.calib.fit.colourguide import colour_smoother
 from viewcomp.calib.fit.lobe import LobeFit, black_lobe_share, fit_lobe
 from viewcomp.calib.fit.paper import (
     CHANNEL_PATTERNS,
@@ -149,7 +149,7 @@ def mixing_tilde(
 ) -> np.ndarray:
     """Per-pixel W~(x) (H, W, 3, 3) from smoothed dL_j(x) = L_j(x) - L_U(x) (Eq. 16 per pixel),
     each dL_j smoothed further where the screen's colour is uniform
-    (:func:`~viewcomp.calib.fit.colourguide.smooth_by_colour`, window radius ``guide_px``
+    (:func:`~viewcomp.calib.fit.colourguide.colour_smoother`, window radius ``guide_px``
     projector px; 0, the default: not) before its ratio is taken: a ratio of window means,
     not a mean of ratios, so a pixel whose own rise is small does not weigh more.
 
@@ -168,7 +168,7 @@ def mixing_tilde(
     except FitError as exc:
         raise FitError(f"{sub}/{exc.capture}", exc.reason) from None
     wt = np.empty((h, w, 3, 3), np.float32)
-    guide = colour_guide(caps["gray"]) if guide_px else None
+    smooth = colour_smoother(caps["gray"], guide_px) if guide_px else None
     for j, name in enumerate(CHANNEL_PATTERNS):
         d = _smooth(caps[name] - caps["gray"], sigma)
         own = d[..., j]
@@ -181,8 +181,8 @@ def mixing_tilde(
                 f"darker than {sub}/gray in its own channel over {np.mean(darker):.0%} of "
                 "the image: patterns in the wrong order, or the camera's white balance moved",
             )
-        if guide is not None:
-            d = smooth_by_colour(d, guide, guide_px)
+        if smooth is not None:
+            d = smooth(d)
             own = d[..., j]
         # A channel the screen barely reflects (a green screen's red) leaves its pattern's
         # rise within the camera's noise at some pixels: no mixing is measured there, so they

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewcomp.calib.fit.colourguide import colour_guide, guided_filter, smooth_by_colour
+from viewcomp.calib.fit.colourguide import colour_guide, colour_smoother, guided_filter
 from viewcomp.calib.fit.pixel import mixing_tilde
 
 H, W = 96, 192
@@ -93,9 +93,9 @@ def test_the_guide_is_the_chromaticity_and_radius_zero_is_the_identity() -> None
     assert np.allclose(guide[:, 0], (0.5, 1.0, 1.5), atol=1e-5)
     assert np.allclose(guide[:, -1], 1.0)  # dark: neutral
     img = np.random.default_rng(0).random((4, 16, 2)).astype(np.float32)
-    assert np.array_equal(smooth_by_colour(img, guide, 0), img)
+    assert np.array_equal(colour_smoother(gray, 0)(img), img)
     with pytest.raises(ValueError, match="radius"):
-        smooth_by_colour(img, guide, -1)
+        colour_smoother(gray, -1)
     with pytest.raises(ValueError, match="gray"):
         colour_guide(gray[..., :2])
 
