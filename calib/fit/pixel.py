@@ -233,11 +233,18 @@ def projector_response(white: dict[str, np.ndarray], wt: np.ndarray, amb: np.nda
 
 
 def screen_model(
-    caps: dict[str, np.ndarray], f_lut: np.ndarray, sigma: float, sub: str, guide_px: int = 0
+    caps: dict[str, np.ndarray],
+    f_lut: np.ndarray,
+    sigma: float,
+    sub: str,
+    guide_px: int = 0,
+    wt: np.ndarray | None = None,
 ) -> ScreenModel:
     """W(x) = W~(x) diag(D(x)), D from the gray capture, A from black (or estimated);
-    ``guide_px``: :func:`mixing_tilde`'s."""
-    wt = mixing_tilde(caps, sigma, sub, guide_px)
+    ``guide_px``: :func:`mixing_tilde`'s. ``wt``: this screen's W~ when already fitted (it
+    becomes W in place), else fitted here."""
+    if wt is None:
+        wt = mixing_tilde(caps, sigma, sub, guide_px)
     amb, measured = _estimate_ambient(caps, sigma)
     f110 = np.array([np.interp(GRAY_LEVEL, np.arange(256), f_lut[:, c]) for c in range(3)])
     d = decouple(wt, caps["gray"], amb) / f110.astype(np.float32)
@@ -280,8 +287,9 @@ def calibrate_pixel(
     wt_w = mixing_tilde(white, smooth_px, "white", guide_px)
     amb_w, _ = _estimate_ambient(white, smooth_px)
     f_lut, misfit = projector_response(white, wt_w, amb_w)
-    del wt_w, amb_w  # screen_model fits the white screen's own again; free these first
-    wm = screen_model(white, f_lut, smooth_px, "white", guide_px)
+    del amb_w
+    wm = screen_model(white, f_lut, smooth_px, "white", guide_px, wt=wt_w)  # W~ becomes W
+    del wt_w
     cm = screen_model(screen, f_lut, smooth_px, "screen", guide_px)
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
     lobe = fit_lobe(s, geometry, valid, lobe_param)
