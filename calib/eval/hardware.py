@@ -15,10 +15,15 @@ glossy magenta, and every measured material of a folder), 8-bit and HDR:
    white screen shows of the image: mean CIEDE2000.
 
 Beside it, ``ideal``: the same calibration and rendering on ideal projector-space captures of
-the same screen and projector - the emulator's truth seen from the camera's position on the
-projector grid, in float linear light (no lens, no noise, no clipping, no device at all) - so
-the difference is what the devices cost. ``original`` is the image projected as it is. A
-capture or a calibration that is refused is a result: the row says why.
+the same screen and projector by a camera of the same kind - the emulator's truth seen from the
+camera's position on the projector grid, in float linear light (no lens, no noise, no clipping,
+no device at all) - so the difference is what the devices cost. A mono camera's ideal captures
+are mono too (the emulated sensor's own weights over the colour channels, the per-primary
+patterns added): its pipeline is the per-primary model (docs/MODEL.md, "Mono cameras"), which
+no device can make better than an ideal mono camera does; its rows also carry
+``ideal_colour``, the ideal colour camera's, which says what seeing no colour costs.
+``original`` is the image projected as it is. A capture or a calibration that is refused is a
+result: the row says why.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from viewcomp.calib.comp.compensation import Compensation
+from viewcomp.calib.emu.camera import MONO_WEIGHTS
 from viewcomp.calib.emu.emulator import Emulator, open_emulator
 from viewcomp.calib.errors import FitError
 from viewcomp.calib.eval.adapted import adapted_delta_e
@@ -42,6 +48,7 @@ from viewcomp.calib.fit.calibrate import Calibration, calibrate
 from viewcomp.calib.io.captureset import capture_set_from_raw, read_capture_set
 from viewcomp.calib.io.hdr import DEFAULT_STOPS
 from viewcomp.calib.io.imageio import CaptureError
+from viewcomp.calib.io.patterns import primary_patterns
 from viewcomp.calib.sim.simcamera import written_rig
 from viewcomp.calib.sim.simulate import projector_patterns
 from viewcomp.calib.world.response import parse_response
@@ -101,18 +108,26 @@ def emulated_capture(
     return paths, emu.clock.now() - start
 
 
-def ideal_calibration(emu: Emulator) -> Calibration:
+def _mono(linear: np.ndarray) -> np.ndarray:
+    """Linear camera RGB (H, W, 3) -> what the emulated mono sensor sees, as R = G = B."""
+    y = np.asarray(linear, np.float32) @ MONO_WEIGHTS
+    return np.repeat(y[..., None], 3, axis=2)
+
+
+def ideal_calibration(emu: Emulator, mono: bool = False) -> Calibration:
     """The calibration from ideal projector-space captures of the emulator's own world: what
     an ideal camera at the calibration camera's position sees on the projector grid (float
-    linear, whole refresh periods)."""
+    linear, whole refresh periods). ``mono``: an ideal mono camera (the emulated mono
+    sensor's weights, with the per-primary patterns a mono capture adds)."""
     truth = emu.truth
     rig = replace(truth.rig, capture=CaptureSpec(space="projector"))
     cam = np.asarray(rig.camera.position, np.float64)
     pats = projector_patterns(rig.projector.resolution, True)
+    if mono:
+        pats |= primary_patterns(*rig.projector.resolution)
+    seen = _mono if mono else (lambda x: np.asarray(x, np.float32))
     sets = {
-        name: {
-            k: truth.observe_linear(name, img, cam).astype(np.float32) for k, img in pats.items()
-        }
+        name: {k: seen(truth.observe_linear(name, img, cam)) for k, img in pats.items()}
         for name in ("white", "screen")
     }
     return calibrate(capture_set_from_raw(rig, sets["white"], sets["screen"]))
@@ -154,8 +169,8 @@ def hardware_case(
     progress: Progress | None = None,
 ) -> dict[str, Any]:
     """One row: ``profile`` x ``screen`` (a colour name, glossy, or a material ``.npz``) x
-    ``capture`` ("8bit" or "hdr"). ``ideal`` caches the ideal pipeline's errors per screen
-    (it depends on neither the profile nor the capture)."""
+    ``capture`` ("8bit" or "hdr"). ``ideal`` caches the ideal pipelines' errors per screen and
+    camera kind (colour or mono; they depend on neither the profile nor the capture)."""
     if capture not in CAPTURES:
         raise ValueError(f"capture must be one of {CAPTURES}, got {capture!r}")
     emu = open_emulator(profile, screen, seed=seed, projector_size=size)
@@ -177,13 +192,15 @@ def hardware_case(
             row["refused"] = str(exc)
     if row["refused"] is None:
         row["emulated"] = seen_errors(emu, cal, imgs, angles)
-    key = row["screen"]
-    if ideal is not None and key in ideal:
-        row["ideal"] = ideal[key]
-    else:
-        row["ideal"] = seen_errors(emu, ideal_calibration(emu), imgs, angles)
-        if ideal is not None:
-            ideal[key] = row["ideal"]
+    cache = ideal if ideal is not None else {}
+    kinds = [("ideal", False)]
+    if emu.camera.channels == 1:
+        kinds = [("ideal", True), ("ideal_colour", False)]
+    for field, mono in kinds:
+        key = f"{row['screen']}/{'mono' if mono else 'colour'}"
+        if key not in cache:
+            cache[key] = seen_errors(emu, ideal_calibration(emu, mono), imgs, angles)
+        row[field] = cache[key]
     row["run_seconds"] = round(time.perf_counter() - t0, 1)
     emu.close()
     if progress:
@@ -194,18 +211,25 @@ def hardware_case(
 
 def check_hardware(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """The criteria: no capture refused; the emulated pipeline's mean dE within
-    :data:`WITHIN` times the ideal one's at 60 and 125 degrees, per row."""
+    :data:`WITHIN` times the ideal one's (the same kind of camera) at 60 and 125 degrees, per
+    row. ``ratios_colour``: a mono row's against the ideal colour camera's (not a criterion:
+    what seeing no colour costs)."""
     refused = [f"{r['profile']}/{r['screen']}/{r['capture']}" for r in rows if r["refused"]]
-    ratios = {}
+    ratios: dict[str, float] = {}
+    colour: dict[str, float] = {}
     for r in rows:
         if r["refused"]:
             continue
         for a in ("60", "125"):
-            e, i = r["emulated"][a]["compensated"], r["ideal"][a]["compensated"]
-            ratios[f"{r['profile']}/{r['screen']}/{r['capture']}@{a}"] = round(e / i, 4)
+            name = f"{r['profile']}/{r['screen']}/{r['capture']}@{a}"
+            e = r["emulated"][a]["compensated"]
+            ratios[name] = round(e / r["ideal"][a]["compensated"], 4)
+            if "ideal_colour" in r:
+                colour[name] = round(e / r["ideal_colour"][a]["compensated"], 4)
     return {
         "refused": refused,
         "ratios": ratios,
+        "ratios_colour": colour,
         "within": all(v <= WITHIN for v in ratios.values()) and not refused,
     }
 

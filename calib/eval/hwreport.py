@@ -14,7 +14,11 @@ def _cell(row: dict[str, Any], angle: str) -> str:
     i = row["ideal"][angle]["compensated"]
     ea = row["emulated"][angle].get("compensated_adapted")
     adapted = f", adapted {ea:.2f}" if ea is not None else ""
-    return f"{e:.2f} / {i:.2f} ({e / i:.3f}{adapted})"
+    colour = ""
+    if "ideal_colour" in row:  # a mono camera's row: the ideal colour camera's beside
+        c = row["ideal_colour"][angle]["compensated"]
+        colour = f"; ideal colour camera {c:.2f}, {e / c:.3f}"
+    return f"{e:.2f} / {i:.2f} ({e / i:.3f}{adapted}{colour})"
 
 
 def write_hardware_report(out: Path, report: dict[str, Any]) -> None:
@@ -29,7 +33,9 @@ def write_hardware_report(out: Path, report: dict[str, Any]) -> None:
         "emulated devices, `calibrate`, the per-pixel compensation of natural images, and what "
         "a viewer sees through the emulator's physics. Numbers: mean CIEDE2000 against the "
         "white screen, emulated captures / ideal projector-space captures of the same world "
-        f"(ratio; the criterion is <= {WITHIN} at 60 and 125 degrees). Capture time: the "
+        "by a camera of the same kind (ratio; the criterion is "
+        f"<= {WITHIN} at 60 and 125 degrees; a mono camera's rows add the ideal colour "
+        "camera's, what seeing no colour costs). Capture time: the "
         "emulated devices' clock, what the capture would take on the real ones.",
         "",
         "| profile | screen | capture | status | capture time (s) | 60 deg | 90 deg | 125 deg |",

@@ -1,4 +1,5 @@
-"""Edge-aware smoothing of the per-pixel colour mixing W~, guided by the screen's own colour.
+"""Edge-aware smoothing of the per-pixel colour terms (the colour mixing W~ and the shares of
+the gains D), guided by the screen's own colour.
 
 W~(x) (:func:`~viewcomp.calib.fit.pixel.mixing_tilde`) is a ratio of differences of captures
 (a colour pattern minus gray, over its own channel): a camera's noise in it is amplified, and
@@ -30,6 +31,16 @@ textured screen, whose colour edges it keeps (8 bits): 1.30 / 1.35 -> 1.16 / 1.1
 radius of 32 px, 1.19 / 1.23 with 16. The box windows leave a trace: a pixel far off its
 neighbours (a camera's colour fringe along the frame's edge) shifts every window it is in,
 seen as bands within a radius of the frame's edges on spectralon.
+
+The same holds for the per-pixel gains D(x) (one per channel, from the gray capture): their
+sum follows the surface's texture and is kept per pixel, but their shares of it are the
+surface's colour, which changes where the chromaticity does; each channel's own noise makes
+a colour noise in them that no lightness texture explains. :func:`smooth_shares` keeps the
+sum and passes the shares through the same filter. A mono camera's three gains (one per
+projector primary alone, docs/MODEL.md "Mono cameras") are three separate noisy captures and
+gain most: its spectralon rows, 0.87 / 0.89 dE (8 bits, 60 / 125 degrees) against an ideal
+mono camera's 0.64 / 0.68, become 0.62 / 0.65; a colour webcam's shares are smoothed already by
+its demosaicking, denoising and chroma subsampling (spectralon 0.94 / 0.99 -> 0.90 / 0.95).
 """
 
 from __future__ import annotations
@@ -39,6 +50,9 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
+#: An image filter (H, W, C) -> (H, W, C) float32: what :func:`colour_smoother` returns.
+Smoother = Callable[[np.ndarray], np.ndarray]
+
 #: The guided filter's window radius (projector px): the window is 2 r + 1 pixels square.
 GUIDE_RADIUS_PX = 32
 #: Its regularisation (units of the guide's squared chromaticity): chromaticity changes
@@ -47,6 +61,10 @@ GUIDE_RADIUS_PX = 32
 GUIDE_EPS = 1e-3
 #: The Gaussian (projector px) the gray capture gets before its chromaticity is the guide.
 GUIDE_SIGMA_PX = 1.0
+#: The least share of a lit pixel's gains a channel keeps after smoothing: a channel the
+#: screen barely reflects (a green screen's red) has a share within the noise of 0, which the
+#: filter may take below it; the gains must stay positive for the model to be inverted.
+SHARE_FLOOR = 1e-3
 
 
 def guide_radius_for(space: str) -> int:
@@ -125,7 +143,7 @@ def guided_filter(guide: np.ndarray, src: np.ndarray, r: int, eps: float) -> np.
 
 def colour_smoother(
     gray: np.ndarray, radius: int | None = None, eps: float | None = None
-) -> Callable[[np.ndarray], np.ndarray]:
+) -> Smoother:
     """The guided filter of images (H, W, C) by the screen's chromaticity
     (:func:`colour_guide` of its gray capture (H, W, 3) linear), returning float32:
     ``radius`` (projector px, >= 0; None: :data:`GUIDE_RADIUS_PX`; 0: images as they are)
@@ -139,3 +157,18 @@ def colour_smoother(
         return lambda img: np.ascontiguousarray(img, np.float32)
     flt = GuidedFilter(colour_guide(gray), r, GUIDE_EPS if eps is None else float(eps))
     return lambda img: np.asarray(flt(img), np.float32)
+
+
+def smooth_shares(gains: np.ndarray, smooth: Smoother) -> np.ndarray:
+    """Per-pixel gains (H, W, 3) with their sum over the channels kept per pixel and their
+    shares of it (each channel over the sum) passed through ``smooth`` (a
+    :func:`colour_smoother`), floored at :data:`SHARE_FLOOR` and renormalised to sum to 1:
+    (H, W, 3) float32, every gain of a lit pixel > 0. Pixels whose sum is not positive are
+    returned as they are."""
+    d = np.asarray(gains, np.float32)
+    total = d.sum(axis=-1, keepdims=True)
+    lit = total[..., 0] > 0
+    shares = np.where(lit[..., None], d / np.where(lit[..., None], total, 1.0), 1.0 / 3.0)
+    shares = np.maximum(smooth(shares), SHARE_FLOOR)
+    out = total * shares / shares.sum(axis=-1, keepdims=True)
+    return np.where(lit[..., None], out, d).astype(np.float32)

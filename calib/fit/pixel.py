@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from viewcomp.calib.errors import FitError
-from viewcomp.calib.fit.colourguide import colour_smoother
+from viewcomp.calib.fit.colourguide import Smoother, colour_smoother, smooth_shares
 from viewcomp.calib.fit.lobe import LobeFit, black_lobe_share, fit_lobe
 from viewcomp.calib.fit.paper import (
     CHANNEL_PATTERNS,
@@ -145,13 +145,19 @@ def _smooth(img: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def mixing_tilde(
-    caps: dict[str, np.ndarray], sigma: float, sub: str, guide_px: int = 0
+    caps: dict[str, np.ndarray],
+    sigma: float,
+    sub: str,
+    guide_px: int = 0,
+    smooth: Smoother | None = None,
 ) -> np.ndarray:
     """Per-pixel W~(x) (H, W, 3, 3) from smoothed dL_j(x) = L_j(x) - L_U(x) (Eq. 16 per pixel),
     each dL_j smoothed further where the screen's colour is uniform
     (:func:`~viewcomp.calib.fit.colourguide.colour_smoother`, window radius ``guide_px``
     projector px; 0, the default: not) before its ratio is taken: a ratio of window means,
     not a mean of ratios, so a pixel whose own rise is small does not weigh more.
+    ``smooth``: that smoother, already made from ``caps["gray"]`` (then ``guide_px`` is not
+    read).
 
     Raises:
         FitError: a colour pattern clearly darker than gray in its own channel over more than
@@ -168,7 +174,8 @@ def mixing_tilde(
     except FitError as exc:
         raise FitError(f"{sub}/{exc.capture}", exc.reason) from None
     wt = np.empty((h, w, 3, 3), np.float32)
-    smooth = colour_smoother(caps["gray"], guide_px) if guide_px else None
+    if smooth is None and guide_px:
+        smooth = colour_smoother(caps["gray"], guide_px)
     for j, name in enumerate(CHANNEL_PATTERNS):
         d = _smooth(caps[name] - caps["gray"], sigma)
         own = d[..., j]
@@ -239,15 +246,23 @@ def screen_model(
     sub: str,
     guide_px: int = 0,
     wt: np.ndarray | None = None,
+    smooth: Smoother | None = None,
 ) -> ScreenModel:
     """W(x) = W~(x) diag(D(x)), D from the gray capture, A from black (or estimated);
-    ``guide_px``: :func:`mixing_tilde`'s. ``wt``: this screen's W~ when already fitted (it
-    becomes W in place), else fitted here."""
+    ``guide_px``: :func:`mixing_tilde`'s, and with it D's shares of their per-pixel sum are
+    smoothed by the same guide (:func:`~viewcomp.calib.fit.colourguide.smooth_shares`: the
+    sum keeps the texture, the shares are the surface's colour). ``wt``: this screen's W~
+    when already fitted (it becomes W in place), else fitted here. ``smooth``: the guided
+    smoother already made from ``caps["gray"]``."""
+    if smooth is None and guide_px:
+        smooth = colour_smoother(caps["gray"], guide_px)
     if wt is None:
-        wt = mixing_tilde(caps, sigma, sub, guide_px)
+        wt = mixing_tilde(caps, sigma, sub, smooth=smooth)
     amb, measured = _estimate_ambient(caps, sigma)
     f110 = np.array([np.interp(GRAY_LEVEL, np.arange(256), f_lut[:, c]) for c in range(3)])
     d = decouple(wt, caps["gray"], amb) / f110.astype(np.float32)
+    if smooth is not None:
+        d = smooth_shares(d, smooth)
     if np.mean(d <= 0) > 0.01:
         if sub == "white" or np.any(np.median(d, axis=(0, 1)) < -_DARK_NOISE):
             raise FitError(
@@ -281,15 +296,17 @@ def calibrate_pixel(
         smooth_px: Gaussian sigma (projector pixels) for the colour-mixing ratios and ambient.
         valid: (H, W) bool, pixels the lobe fit may use (False: clipped in some capture).
         lobe_param: force the lobe's parametrisation ("half" or "mirror"); None: the better.
-        guide_px: the colour mixing also smoothed where the screen's colour is uniform, over
-            windows of this radius (projector px; 0: not; :mod:`~.colourguide`).
+        guide_px: the colour mixing, and the gains' shares of their sum, also smoothed where
+            the screen's colour is uniform, over windows of this radius (projector px; 0:
+            not; :mod:`~.colourguide`).
     """
-    wt_w = mixing_tilde(white, smooth_px, "white", guide_px)
+    smooth_w = colour_smoother(white["gray"], guide_px) if guide_px else None
+    wt_w = mixing_tilde(white, smooth_px, "white", smooth=smooth_w)
     amb_w, _ = _estimate_ambient(white, smooth_px)
     f_lut, misfit = projector_response(white, wt_w, amb_w)
     del amb_w
-    wm = screen_model(white, f_lut, smooth_px, "white", guide_px, wt=wt_w)  # W~ becomes W
-    del wt_w
+    wm = screen_model(white, f_lut, smooth_px, "white", wt=wt_w, smooth=smooth_w)  # W~ -> W
+    del wt_w, smooth_w
     cm = screen_model(screen, f_lut, smooth_px, "screen", guide_px)
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
     lobe = fit_lobe(s, geometry, valid, lobe_param)

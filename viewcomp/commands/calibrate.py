@@ -49,10 +49,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=nonnegative_int,
         default=None,
         metavar="PX",
-        help="smooth the per-pixel colour mixing over windows of this radius (projector "
-        "pixels) wherever the screen's colour is uniform, keeping its colour edges: a guided "
-        "filter led by the screen's chromaticity, against a camera's noise. Default: 32 for "
-        "camera-space captures, 0 (not) for projector-space ones",
+        help="smooth the per-pixel colour mixing, and the colour of the per-pixel gains (their "
+        "shares of their sum; the sum keeps the texture), over windows of this radius "
+        "(projector pixels) wherever the screen's colour is uniform, keeping its colour "
+        "edges: a guided filter led by the screen's chromaticity, against a camera's noise. "
+        "Default: 32 for camera-space captures, 0 (not) for projector-space ones",
     )
     p.add_argument(
         "--report",
