@@ -40,6 +40,7 @@ from viewcomp.calib.eval.metrics import delta_e2000
 from viewcomp.calib.eval.testimages import natural_images
 from viewcomp.calib.sim.simulator import white_screen
 from viewcomp.calib.world.audience import ZONE_VIEWERS, zone
+from viewcomp.calib.world.eye import eye_to_polar
 
 ZONES = ((60.0, 120.0), (30.0, 90.0))  # the documented zone (README), and one off-centre
 JUDGE_VIEWERS = 13  # angles each zone is judged at
@@ -188,8 +189,8 @@ def walk_rows(
         rows.append(
             {
                 "t": round(float(times[i]), 4),
-                "angle": round(float(np.degrees(np.arctan2(eye[2], eye[0]))), 3),
-                "tracked_angle": round(float(np.degrees(np.arctan2(seen[2], seen[0]))), 3),
+                "angle": round(eye_to_polar(eye)[0], 3),
+                "tracked_angle": round(eye_to_polar(seen)[0], 3),
                 "eye_error_m": round(
                     float(np.linalg.norm(tracked[max(0, i - delay)] - truth[i])), 4
                 ),

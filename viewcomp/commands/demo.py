@@ -124,12 +124,12 @@ VIDEO_OUTPUTS = ("clip.mp4", "walk.csv", "clip-compensated.mp4", "viewer.mp4")
 
 def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     """Compensate a clip with the shader for a walking viewer; write what the viewer sees."""
-    import numpy as np
 
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.eval.preview import labelled_row
     from viewcomp.calib.io.atomic import write_text_atomic
     from viewcomp.calib.sim.simulator import white_screen
+    from viewcomp.calib.world.eye import eye_to_polar
     from viewcomp.rt.gl.context import GLUnavailable
     from viewcomp.rt.render.pipeline import render_file
     from viewcomp.rt.render.tracks import load_angle_track
@@ -154,7 +154,7 @@ def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     tiles = []
     for t, a, b in zip(times, frames_in, frames_out, strict=False):
         eye = track(t)
-        angle = float(np.degrees(np.arctan2(eye[2], eye[0])))
+        angle = eye_to_polar(eye)[0]
         row = [
             sim.observe(white_screen(), a, eye),
             sim.observe(screen, a, eye),

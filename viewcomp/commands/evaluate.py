@@ -30,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "walking across, followed by the face tracker; or hardware: `viewcomp capture`'s "
         "procedure on the hardware emulator (webcam, DSLR, mono12 camera; a DLP projector) "
         "on the glossy magenta screen and the materials of --materials (if given), 8-bit and "
-        "HDR, calibrated and compensated, beside ideal captures, with the capture time the "
-        "real devices would take",
+        "HDR, calibrated and compensated, beside ideal captures by a camera of the same kind "
+        "(mono or colour), with the capture time the real devices would take",
     )
     p.add_argument(
         "--no-walk", action="store_true", help="--protocol audience: the zone only, no tracked walk"
