@@ -145,19 +145,13 @@ def _smooth(img: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def mixing_tilde(
-    caps: dict[str, np.ndarray],
-    sigma: float,
-    sub: str,
-    guide_px: int = 0,
-    smooth: Smoother | None = None,
+    caps: dict[str, np.ndarray], sigma: float, sub: str, smooth: Smoother | None = None
 ) -> np.ndarray:
     """Per-pixel W~(x) (H, W, 3, 3) from smoothed dL_j(x) = L_j(x) - L_U(x) (Eq. 16 per pixel),
-    each dL_j smoothed further where the screen's colour is uniform
-    (:func:`~viewcomp.calib.fit.colourguide.colour_smoother`, window radius ``guide_px``
-    projector px; 0, the default: not) before its ratio is taken: a ratio of window means,
-    not a mean of ratios, so a pixel whose own rise is small does not weigh more.
-    ``smooth``: that smoother, already made from ``caps["gray"]`` (then ``guide_px`` is not
-    read).
+    each dL_j smoothed further where the screen's colour is uniform by ``smooth`` (a
+    :func:`~viewcomp.calib.fit.colourguide.colour_smoother` of ``caps["gray"]``; None, the
+    default: not) before its ratio is taken: a ratio of window means, not a mean of ratios, so
+    a pixel whose own rise is small does not weigh more.
 
     Raises:
         FitError: a colour pattern clearly darker than gray in its own channel over more than
@@ -174,8 +168,6 @@ def mixing_tilde(
     except FitError as exc:
         raise FitError(f"{sub}/{exc.capture}", exc.reason) from None
     wt = np.empty((h, w, 3, 3), np.float32)
-    if smooth is None and guide_px:
-        smooth = colour_smoother(caps["gray"], guide_px)
     for j, name in enumerate(CHANNEL_PATTERNS):
         d = _smooth(caps[name] - caps["gray"], sigma)
         own = d[..., j]
@@ -244,20 +236,16 @@ def screen_model(
     f_lut: np.ndarray,
     sigma: float,
     sub: str,
-    guide_px: int = 0,
     wt: np.ndarray | None = None,
     smooth: Smoother | None = None,
 ) -> ScreenModel:
     """W(x) = W~(x) diag(D(x)), D from the gray capture, A from black (or estimated);
-    ``guide_px``: :func:`mixing_tilde`'s, and with it D's shares of their per-pixel sum are
+    ``smooth``: :func:`mixing_tilde`'s, and with it D's shares of their per-pixel sum are
     smoothed by the same guide (:func:`~viewcomp.calib.fit.colourguide.smooth_shares`: the
     sum keeps the texture, the shares are the surface's colour). ``wt``: this screen's W~
-    when already fitted (it becomes W in place), else fitted here. ``smooth``: the guided
-    smoother already made from ``caps["gray"]``."""
-    if smooth is None and guide_px:
-        smooth = colour_smoother(caps["gray"], guide_px)
+    when already fitted (it becomes W in place), else fitted here."""
     if wt is None:
-        wt = mixing_tilde(caps, sigma, sub, smooth=smooth)
+        wt = mixing_tilde(caps, sigma, sub, smooth)
     amb, measured = _estimate_ambient(caps, sigma)
     f110 = np.array([np.interp(GRAY_LEVEL, np.arange(256), f_lut[:, c]) for c in range(3)])
     d = decouple(wt, caps["gray"], amb) / f110.astype(np.float32)
@@ -301,13 +289,15 @@ def calibrate_pixel(
             not; :mod:`~.colourguide`).
     """
     smooth_w = colour_smoother(white["gray"], guide_px) if guide_px else None
-    wt_w = mixing_tilde(white, smooth_px, "white", smooth=smooth_w)
+    wt_w = mixing_tilde(white, smooth_px, "white", smooth_w)
     amb_w, _ = _estimate_ambient(white, smooth_px)
     f_lut, misfit = projector_response(white, wt_w, amb_w)
     del amb_w
-    wm = screen_model(white, f_lut, smooth_px, "white", wt=wt_w, smooth=smooth_w)  # W~ -> W
+    wm = screen_model(white, f_lut, smooth_px, "white", wt_w, smooth_w)  # W~ becomes W
     del wt_w, smooth_w
-    cm = screen_model(screen, f_lut, smooth_px, "screen", guide_px)
+    smooth_s = colour_smoother(screen["gray"], guide_px) if guide_px else None
+    cm = screen_model(screen, f_lut, smooth_px, "screen", smooth=smooth_s)
+    del smooth_s
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
     lobe = fit_lobe(s, geometry, valid, lobe_param)
     share = np.zeros(3)

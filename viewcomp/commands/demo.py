@@ -124,7 +124,6 @@ VIDEO_OUTPUTS = ("clip.mp4", "walk.csv", "clip-compensated.mp4", "viewer.mp4")
 
 def _video(out: Path, cal, sim, screen, images: dict, log) -> None:
     """Compensate a clip with the shader for a walking viewer; write what the viewer sees."""
-
     from viewcomp.calib.comp.compensation import Compensation
     from viewcomp.calib.eval.preview import labelled_row
     from viewcomp.calib.io.atomic import write_text_atomic

@@ -67,7 +67,9 @@ def test_noise_inside_a_colour_region_is_averaged(seed: int) -> None:
     inner = np.zeros((H, W), bool)
     # beyond the window's reach of the colour edge
     inner[8:-8, 8 : EDGE - GUIDE - 8] = inner[8:-8, EDGE + GUIDE + 8 : -8] = True
-    guided = _off_diagonal(mixing_tilde(caps, 3.0, "screen", GUIDE) - truth)[inner]
+    guided = _off_diagonal(
+        mixing_tilde(caps, 3.0, "screen", colour_smoother(caps["gray"], GUIDE)) - truth
+    )[inner]
     plain = _off_diagonal(mixing_tilde(caps, 3.0, "screen") - truth)[inner]
     rms_guided = float(np.sqrt(np.mean(guided**2)))
     rms_plain = float(np.sqrt(np.mean(plain**2)))
@@ -82,7 +84,11 @@ def test_a_colour_edge_keeps_its_step() -> None:
     near = np.zeros((H, W), bool)
     near[8:-8, EDGE - 6 : EDGE - 2] = near[8:-8, EDGE + 2 : EDGE + 6] = True
     step = float(np.max(np.abs(_off_diagonal(truth[0, 0] - truth[0, -1]))))
-    guided = np.abs(_off_diagonal(mixing_tilde(caps, 3.0, "screen", GUIDE) - truth))[near]
+    guided = np.abs(
+        _off_diagonal(
+            mixing_tilde(caps, 3.0, "screen", colour_smoother(caps["gray"], GUIDE)) - truth
+        )
+    )[near]
     wide = np.abs(_off_diagonal(mixing_tilde(caps, 16.0, "screen") - truth))[near]
     # measured (seeds 1-3): 2-6 px from the edge the guided mixing is at most 0.22-0.24 of
     # the step off; a Gaussian of 16 px (noise 0.0019-0.0021 inside, about the guided

@@ -16,6 +16,7 @@ from viewcomp.calib.hw import session as session_mod
 from viewcomp.calib.hw.autoexposure import TARGET, bright_level, search_exposure
 from viewcomp.calib.hw.bracket import Bracket
 from viewcomp.calib.hw.camlock import lock_controls
+from viewcomp.calib.hw.clock import SimClock
 from viewcomp.calib.hw.interface import DeviceError
 from viewcomp.calib.hw.procedure import run_capture
 from viewcomp.calib.hw.reader import FrameReader
@@ -80,7 +81,10 @@ def test_every_kept_frame_shows_its_pattern_despite_latency_and_a_queue() -> Non
     laggy_dev = _rig(latency=0.2, queue=4, **kw)
     laggy = _session(laggy_dev, frames=2)
     laggy.prepare(False, None, parse_response("srgb"), False)
-    assert laggy.latency >= 0.2
+    # the latency the session measured on the rig's simulated clock (no wall time: a busy
+    # machine cannot move it) covers the one the simulated projector was given
+    assert isinstance(laggy_dev.clock, SimClock)
+    assert laggy.latency >= laggy_dev.latency
     blind = _session(_rig(latency=0.2, queue=4, **kw), frames=2)
     blind.latency = 0.0
     worst_sync, worst_blind = 0.0, 0.0
