@@ -17,11 +17,18 @@ everywhere (pixels that mix lit and black projector pixels included):
     L'_k(x) - B_k(x) = r_k (L_k(x) - B_k(x)),   r_k = response_k(D(t)) / response_k(t)
 
 with B the stage's black capture (room light and the projector's leak, not dimmed).
-:func:`measured_ratio` finds r_k where neither capture clips (ratio of sums: the bright
-pixels weigh most); :func:`fill_clipped` then gives the clipped pixel-channels
-B + (L' - B) / r. r_k is per camera channel: it holds whatever the projector's primaries, its
-white segment and their mixing in the camera do, as long as the screen's reflectance scales
-each camera channel alone (a diagonal reflectance, as the simulator's).
+:func:`measured_ratio` finds r_k where neither capture clips and the dimmed frame holds
+projector light well above the black capture's (ratio of sums: the bright pixels weigh
+most); :func:`fill_clipped` then gives the clipped pixel-channels B + (L' - B) / r. Pixels
+that are bright only because of the room's light are left out: their light above black is
+noise, and a Gray-code plane whose lit stripes all clip has thousands of them (measured: an
+emulated mono webcam on satin_gold read r = 0.94 there instead of 0.24). r_k is per camera
+channel: it holds whatever the projector's primaries, its white segment and their mixing in
+the camera do, as long as the screen's reflectance scales each camera channel alone (a
+diagonal reflectance, as the simulator's). For a triple of unequal levels (the colour
+patterns) each primary dims by its own ratio, so r_k is exact only where a camera channel
+sees one primary; dimming with drives that give every primary the emulator's true ratio
+changed no measured figure (the webcam's HDR rows on satin_gold, the most clipped).
 
 A pattern of many levels (the ramp, the phase-shifted fringes) is dimmed too, by the mean
 ratio of its own unclipped pixels: each level dims by its own ratio (the response is not a
@@ -47,9 +54,10 @@ Log = Callable[[str], None]
 DRIVE_STEP = 0.5
 #: Dimmed stops at most per capture.
 MAX_DIMS = 3
-#: Encoded values (0..1) a dimmed frame's pixel needs to measure the ratio, tried in turn
-#: until enough pixels pass: well above an 8-bit camera's noise, then what a dark screen in a
-#: 12-bit camera's one-period stop leaves (a dimmed diffuse part at a few % of full scale).
+#: Encoded values (0..1) a dimmed frame's pixel needs above the black capture's code at the
+#: same stop to measure the ratio, tried in turn until enough pixels pass: well above an
+#: 8-bit camera's noise, then what a dark screen in a 12-bit camera's one-period stop leaves
+#: (a dimmed diffuse part at a few % of full scale).
 RATIO_CODES = (16.0 / 255.0, 4.0 / 255.0)
 #: Pixels of a camera channel that must measure the ratio.
 MIN_RATIO_PIXELS = 20
@@ -78,6 +86,7 @@ def measured_ratio(
     dim_lin: np.ndarray,
     dim_codes: np.ndarray,
     black: np.ndarray | None,
+    black_codes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The light ratio r (3,) per camera channel of a dimmed capture to its undimmed one
     (module doc), NaN for a channel with fewer than :data:`MIN_RATIO_PIXELS` pixels to
@@ -90,6 +99,9 @@ def measured_ratio(
         dim_codes: (H, W, 3) float the dimmed frame's encoded values 0..1 (well exposed:
             one of :data:`RATIO_CODES` .. CLIP_CODE).
         black: (H, W, 3) float32 the black capture in the same units, or None (0).
+        black_codes: (H, W, 3) float the black capture's encoded values 0..1 at the dimmed
+            frame's exposure (what it would read there), or None (0): a pixel measures only
+            where its dimmed code is one of :data:`RATIO_CODES` above it.
     """
     b = 0.0 if black is None else black.astype(np.float64)
     above = lin.astype(np.float64) - b
@@ -98,10 +110,11 @@ def measured_ratio(
     near_clip = cv2.dilate(np.any(clipped, axis=2).astype(np.uint8), kernel) > 0
     out = np.full(3, np.nan)
     counts = np.zeros(3, np.int64)
+    signal = dim_codes if black_codes is None else dim_codes - black_codes
     for k in range(lin.shape[2]):
         usable = ~near_clip & (dim_codes[..., k] < CLIP_CODE) & (above[..., k] > 0)
         for low in RATIO_CODES:
-            good = usable & (dim_codes[..., k] >= low)
+            good = usable & (signal[..., k] >= low)
             n = int(np.count_nonzero(good))
             if n >= MIN_RATIO_PIXELS:
                 break
@@ -113,6 +126,20 @@ def measured_ratio(
             out[k] = num / den
             counts[k] = n
     return out, counts
+
+
+def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The median of ``values`` (n,) weighted by ``weights`` (n,) >= 0, over the finite values
+    of positive weight: the smallest value with at least half the weight at or below it; NaN
+    when there is none."""
+    v = np.asarray(values, np.float64)
+    w = np.asarray(weights, np.float64)
+    keep = np.isfinite(v) & (w > 0)
+    if not keep.any():
+        return float("nan")
+    order = np.argsort(v[keep])
+    vs, cum = v[keep][order], np.cumsum(w[keep][order])
+    return float(vs[int(np.searchsorted(cum, 0.5 * cum[-1]))])
 
 
 def fill_clipped(
@@ -144,9 +171,11 @@ class Dimmer:
     estimate it after making the dimmer).
 
     A ratio belongs to the projector and camera, not to the capture: each (drive triple,
-    dimmed stop) keeps the ratio measured on the most pixels so far, per camera channel, and
-    a capture whose own unclipped part is too small to measure a channel (a fine Gray-code
-    plane, a screen that barely reflects that channel) uses it.
+    dimmed stop) keeps every ratio measured so far and uses, per camera channel, their median
+    weighted by the pixels that measured each (:func:`weighted_median`). A capture whose own
+    unclipped part is too small to measure a channel (a fine Gray-code plane, a screen that
+    barely reflects that channel) so takes the earlier ones', and one measurement gone wrong
+    does not replace the rest however many pixels it had.
     """
 
     def __init__(
@@ -163,8 +192,11 @@ class Dimmer:
         #: captures dimmed, and the pixel-channels their dimmed stops recovered
         self.dimmed = 0
         self.recovered = 0
-        #: (drive triple, dimmed stop) -> (ratio (3,), pixels that measured it (3,))
+        #: (drive triple, dimmed stop) -> (ratio in use (3,), pixels that measured it (3,))
         self.known: dict[tuple[tuple[int, ...], int], tuple[np.ndarray, np.ndarray]] = {}
+        #: (drive triple, dimmed stop) -> every (ratio (3,), pixels (3,)) measured
+        self._measured: dict[tuple[tuple[int, ...], int], list[tuple[np.ndarray, np.ndarray]]]
+        self._measured = {}
         self._told_many_levels = False
 
     def summary(self) -> str:
@@ -177,14 +209,15 @@ class Dimmer:
     def _ratio(
         self, key: tuple[tuple[int, ...], int], ratio: np.ndarray, counts: np.ndarray
     ) -> np.ndarray:
-        """``ratio`` (3,) with each channel measured on fewer pixels than the best earlier
-        measurement of ``key`` taken from that one (which is replaced where this is better)."""
-        best_r, best_n = self.known.get(key, (np.full(3, np.nan), np.zeros(3, np.int64)))
-        better = counts > best_n
-        best_r = np.where(better, ratio, best_r)
-        best_n = np.where(better, counts, best_n)
-        self.known[key] = (best_r, best_n)
-        return best_r
+        """The ratio (3,) to use for ``key`` after this measurement (``ratio``, ``counts``
+        (3,)): per channel the pixel-weighted median of every measurement of ``key``."""
+        seen = self._measured.setdefault(key, [])
+        seen.append((np.asarray(ratio, np.float64), np.asarray(counts, np.int64)))
+        rs = np.stack([r for r, _ in seen])
+        ns = np.stack([n for _, n in seen])
+        out = np.array([weighted_median(rs[:, k], ns[:, k]) for k in range(rs.shape[1])])
+        self.known[key] = (out, ns.sum(axis=0))
+        return out
 
     def recover(
         self,
@@ -219,7 +252,10 @@ class Dimmer:
             codes, rel = self.shortest(frames, not_before, f"{what} (dimmed x{level})")
             dim_lin, dim_clipped = merge_exposures([codes], [rel], self.response())
             top = float(np.iinfo(codes.dtype).max)
-            found, counts = measured_ratio(lin, clipped, dim_lin, codes / top, black)
+            black_codes = (
+                None if black is None else self.response().encode(np.clip(black * rel, 0, 1))
+            )
+            found, counts = measured_ratio(lin, clipped, dim_lin, codes / top, black, black_codes)
             ratio = self._ratio((triple, level), found, counts) if one else found
             lin, clipped = fill_clipped(lin, clipped, dim_lin, dim_clipped, black, ratio)
             if not clipped.any():

@@ -25,6 +25,7 @@ from viewcomp.calib.hw.dimming import (
     fill_clipped,
     measured_ratio,
     single_level,
+    weighted_median,
 )
 from viewcomp.calib.hw.reader import FrameReader
 from viewcomp.calib.hw.session import Session
@@ -152,7 +153,7 @@ def test_ratio_and_fill_recover_light_above_black() -> None:
     assert float(np.abs(wrong[10:14, 20:24] - truth[10:14, 20:24]).max()) > 0.02
 
 
-def test_a_channel_too_small_to_measure_takes_the_best_earlier_ratio() -> None:
+def test_a_channel_too_small_to_measure_takes_the_earlier_ratio() -> None:
     h, w = 30, 40
     pattern = np.full((h, w, 3), 255, np.uint8)
     black = np.zeros((h, w, 3), np.float32)
@@ -190,3 +191,56 @@ def test_a_channel_too_small_to_measure_takes_the_best_earlier_ratio() -> None:
     assert not left.any()
     assert lin[6, 6] == pytest.approx([2.0] * 3, rel=1e-3)
     assert len(shown) == 2 and shown[0][0, 0].tolist() == [128, 128, 128]
+
+
+def test_pixels_lit_only_by_the_room_do_not_measure_the_ratio() -> None:
+    # a Gray-code plane whose lit stripes all clip: what is left unclipped is room light
+    # (black B at 20 codes of 255) and a tenth of a code more that the dimming does not
+    # change (a black capture taken a little earlier, a codec's ringing), plus noise; without
+    # the black's codes those pixels pass the code threshold and measure a ratio near 1, with
+    # them they measure nothing
+    rng = np.random.default_rng(3)
+    h, w = 40, 60
+    black = np.full((h, w, 3), 20.0 / 255.0, np.float32)
+    clipped = np.zeros((h, w, 3), bool)
+    clipped[:, :20] = True  # the lit stripe
+    dark = black + 0.1 / 255.0
+    lin = np.where(clipped, 1.0, dark + rng.normal(0, 1e-4, (h, w, 3))).astype(np.float32)
+    dim_lin = np.where(clipped, 0.8, dark + rng.normal(0, 1e-4, (h, w, 3))).astype(np.float32)
+    codes = np.clip(dim_lin, 0, 1)
+    fooled, n = measured_ratio(lin, clipped, dim_lin, codes, black)
+    assert (n > 100).all() and np.all(fooled > 0.3)  # the test can see the bias
+    found, counts = measured_ratio(lin, clipped, dim_lin, codes, black, black)
+    assert np.isnan(found).all() and not counts.any()
+
+
+def test_weighted_median() -> None:
+    assert weighted_median(np.array([0.2, 0.9, 0.21]), np.array([1000, 2500, 1800])) == 0.21
+    assert weighted_median(np.array([0.2, 0.9]), np.array([3, 1])) == 0.2
+    assert weighted_median(np.array([0.2, np.nan, 0.5]), np.array([1, 9, 2])) == 0.5
+    assert np.isnan(weighted_median(np.array([0.2]), np.array([0])))
+
+
+def test_one_wrong_measurement_does_not_replace_the_others() -> None:
+    # four planes of one drive triple: three measure the true ratio on about 1000 pixels
+    # each, the fourth a wrong one (its unclipped part dims by 0.9: stray light) on 2400;
+    # the fourth's highlight is still filled with the true ratio
+    h, w = 40, 60
+    pattern = np.full((h, w, 3), 255, np.uint8)
+    black = np.zeros((h, w, 3), np.float32)
+    r_true = 0.2
+    current: dict[str, np.ndarray] = {}
+
+    def shortest(frames: int, not_before: float, what: str) -> tuple[np.ndarray, float]:
+        return np.rint(np.clip(current["dim"], 0, 1) * 65535).astype(np.uint16), 1.0
+
+    dimmer = Dimmer(lambda p: 0.0, shortest, lambda: parse_response("linear"), lambda _: None)
+    for unclipped_ratio, lit_rows in ((r_true, 17), (r_true, 17), (r_true, 17), (0.9, 40)):
+        light = np.zeros((h, w, 3), np.float32)
+        light[:lit_rows] = 0.5
+        light[5:8, 5:8] = 2.0
+        clipped = light > 1.0
+        current["dim"] = np.where(clipped, light * r_true, light * unclipped_ratio)
+        lin, left = dimmer.recover(pattern, (np.minimum(light, 1.0), clipped), black, 1, "p")
+        assert not left.any()
+        assert lin[6, 6] == pytest.approx([2.0] * 3, rel=1e-3)
