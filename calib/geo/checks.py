@@ -48,9 +48,9 @@ def check_pattern_order(images: Mapping[str, np.ndarray], sub: str) -> None:
         FitError: naming the capture and the fix.
     """
     fix = (
-        "the captures are in the wrong order or mislabelled: capture red (130,110,110), green "
-        "(110,130,110), blue (110,110,130), gray (110,110,110) and the ramp as `viewcomp "
-        "patterns` writes them"
+        "the captures are in the wrong order or mislabelled: capture red (130,110,110, or "
+        "255 in red as `viewcomp capture` shows it), green, blue, gray (110,110,110) and the "
+        "ramp as `viewcomp patterns` writes them"
     )
     h, w = images["gray"].shape[:2]
     inner = (slice(h // 10, h - h // 10), slice(w // 10, w - w // 10))

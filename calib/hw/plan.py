@@ -13,7 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewcomp.calib.io.patterns import primary_patterns, table1_patterns
+from viewcomp.calib.io.patterns import (
+    CAMERA_COLOUR_LEVEL,
+    primary_patterns,
+    table1_patterns,
+)
 from viewcomp.calib.sim.simcamera import geometric_patterns
 
 TABLE1_ORDER = ("black", "gray", "red", "green", "blue", "ramp")
@@ -48,7 +52,7 @@ def capture_plan(width: int, height: int, mono: bool = False) -> list[Step]:
     """Every capture of a camera-space set, in order, for a width x height projector; a
     ``mono`` camera's stages add each primary alone
     (:func:`~viewcomp.calib.io.patterns.primary_patterns`) after Table 1."""
-    t1 = table1_patterns(width, height)
+    t1 = table1_patterns(width, height, CAMERA_COLOUR_LEVEL)
     geo = geometric_patterns(width, height)
     prim = primary_patterns(width, height) if mono else {}
     white = [Step("white", n, t1[n]) for n in TABLE1_ORDER]

@@ -54,7 +54,8 @@ def check_captures(cs: CaptureSet) -> None:
 
 
 def _check_colours_against_gray(cs: CaptureSet, sub: str) -> None:
-    """Each colour pattern of Table 1 (130 in its own channel, 110 in the others) is brighter
+    """Each colour pattern of Table 1 (130, or 255 in a camera capture, in its own channel,
+    110 in the others) is brighter
     than gray (110 everywhere) in its own channel on any screen. When all three are not,
     the gray capture is the odd one; when one is not, that pair is named."""
     images = cs.images(sub)

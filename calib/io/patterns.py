@@ -45,14 +45,30 @@ def ramp_levels(w: int) -> np.ndarray:
     return ((510 * u + (w - 1)) // (2 * (w - 1))).astype(np.uint8)  # 0..255
 
 
-def table1_patterns(w: int, h: int) -> dict[str, np.ndarray]:
+#: The colour patterns' own channel in a camera capture (`viewcomp capture` on a device): the
+#: fits read only ratios of a colour pattern's rise over gray, so the level is free, and a rise
+#: of 20 levels (Table 1's 130) leaves the cross-talk it measures a difference of 2-3 codes in an
+#: 8-bit frame, the size of an MJPEG codec's chroma quantisation (docs/EVALUATION.md).
+CAMERA_COLOUR_LEVEL = 255
+
+
+def table1_patterns(w: int, h: int, colour_level: int | None = None) -> dict[str, np.ndarray]:
     """Table 1 patterns, each (h, w, 3) uint8 encoded: red (130,110,110), green (110,130,110),
     blue (110,110,130), gray U (110,110,110), ramp S (every row :func:`ramp_levels` in all
-    three channels) and black (0,0,0)."""
+    three channels) and black (0,0,0). ``colour_level``: the colour patterns' own channel in
+    place of 130 (> 110, <= 255; None: Table 1's)."""
     _check_size(w, h, min_w=2)
+    colours = dict(TABLE1_COLOURS)
+    if colour_level is not None:
+        if not int(GRAY_LEVEL) < int(colour_level) <= 255:
+            raise ValueError(f"colour_level must be in 111..255, got {colour_level!r}")
+        for j, name in enumerate(("red", "green", "blue")):
+            rgb = [int(GRAY_LEVEL)] * 3
+            rgb[j] = int(colour_level)
+            colours[name] = (rgb[0], rgb[1], rgb[2])
     out = {
         name: np.broadcast_to(np.array(rgb, np.uint8), (h, w, 3)).copy()
-        for name, rgb in TABLE1_COLOURS.items()
+        for name, rgb in colours.items()
     }
     levels = ramp_levels(w)
     out["ramp"] = np.broadcast_to(levels[None, :, None], (h, w, 3)).copy()

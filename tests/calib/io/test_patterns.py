@@ -34,6 +34,24 @@ def test_table1_colours() -> None:
         assert (p[name] == rgb).all()
 
 
+def test_a_camera_capture_raises_the_colour_patterns_further() -> None:
+    """`capture` on a device shows the colour patterns at CAMERA_COLOUR_LEVEL in their own
+    channel (gray, ramp and black as Table 1); projector-space sets keep Table 1's 130."""
+    from viewcomp.calib.hw.plan import capture_plan
+    from viewcomp.calib.io.patterns import CAMERA_COLOUR_LEVEL
+
+    p = table1_patterns(64, 8, 200)
+    assert (p["red"] == (200, 110, 110)).all() and (p["blue"] == (110, 110, 200)).all()
+    assert (p["gray"] == 110).all() and np.array_equal(p["ramp"], table1_patterns(64, 8)["ramp"])
+    for bad in (110, 256):
+        with pytest.raises(ValueError, match="colour_level"):
+            table1_patterns(64, 8, bad)
+    shown = {(s.sub, s.name): s.pattern[0, 0].tolist() for s in capture_plan(320, 160)}
+    for sub in ("white", "screen"):
+        assert shown[(sub, "green")] == [110, CAMERA_COLOUR_LEVEL, 110]
+        assert shown[(sub, "gray")] == [110, 110, 110]
+
+
 @pytest.mark.parametrize("w", [2, 3, 7, 256, 640, 1920])
 def test_ramp_formula(w: int) -> None:
     ramp = table1_patterns(w, 3)["ramp"]
