@@ -73,12 +73,12 @@ def _encode(linear: np.ndarray) -> np.ndarray:
 
 
 def emulated_capture(
-    emu: Emulator, out: Path, hdr: bool, frames: int = 8, log: Progress | None = None
+    emu: Emulator, out: Path, hdr: bool, frames: int | None = None, log: Progress | None = None
 ) -> tuple[list[Path], float]:
     """Run the real capture procedure on ``emu`` into ``out``; returns the files and the
-    seconds it took on the emulated devices' clock. ``frames`` averaged per capture: 8, as
-    `viewcomp capture` takes by default (with 4 the webcam's noise left in the per-pixel
-    terms cost it 1.93 dE on spectralon, with 16 1.32: the protocol measures the default)."""
+    seconds it took on the emulated devices' clock. ``frames`` averaged per capture; None, as
+    `viewcomp capture` takes by default (16 for the webcam's 8-bit frames, 8 for the others':
+    :func:`~viewcomp.calib.hw.frames.default_frames`; the protocol measures the default)."""
     from viewcomp.calib.hw.procedure import run_capture
 
     # raw frames are linear; an encoding camera's curve is what a user does not know: it is

@@ -6,6 +6,14 @@ else: the mean of several frames, or frames of more than 8 bits, scaled so that 
 full scale, :attr:`Frame.max_code`, becomes 65535: the same 0..1 scale at more precision). A
 mono frame (H, W) becomes three equal channels (:mod:`viewcomp.calib.hw.mono` says what such a
 capture can calibrate).
+
+How many frames a capture averages when the user does not say (:func:`default_frames`):
+:data:`FRAMES_8BIT` for a camera whose frames have 8 bits, :data:`FRAMES_DEEP` for deeper
+ones. An 8-bit stream (a UVC webcam's, usually MJPEG) quantises each frame to codes (and its
+codec a flat colour's chroma to coarser steps) that only the sensor's noise dithers, so its
+mean converges slowly; raw frames of 12-14 bits need no such help. Measured on the emulated
+webcam (`evaluate --protocol hardware` rows, spectralon in 8 bits, ratio to ideal captures at
+60 / 125 degrees): 8 frames 1.16 / 1.14, 16 frames 1.01 / 0.99, for 21 s more capture.
 """
 
 from __future__ import annotations
@@ -13,6 +21,17 @@ from __future__ import annotations
 import numpy as np
 
 from viewcomp.calib.hw.interface import DeviceError, Frame
+
+#: Frames averaged per capture by default: 8-bit frames, and deeper ones.
+FRAMES_8BIT = 16
+FRAMES_DEEP = 8
+
+
+def default_frames(frame: Frame) -> int:
+    """Frames to average per capture for a camera that delivers frames like ``frame``
+    (module doc): :data:`FRAMES_8BIT` when it has 8 significant bits or fewer, else
+    :data:`FRAMES_DEEP`."""
+    return FRAMES_8BIT if frame.bits <= 8 else FRAMES_DEEP
 
 
 def frame_rgb(frame: Frame) -> np.ndarray:

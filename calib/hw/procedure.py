@@ -156,7 +156,7 @@ def run_capture(
     rig_template: Rig | None = None,
     prompt: Prompt = console_prompt,
     log: Log = print,
-    frames: int = 8,
+    frames: int | None = None,
     settle: float = 0.0,
     clock: Clock | None = None,
     response: str | float | None = None,
@@ -174,7 +174,9 @@ def run_capture(
             devices'); None: the example rig, written with a "to complete" note.
         prompt: asks the user to swap screens; returning False stops (nothing written).
         log: progress and warnings.
-        frames: camera frames averaged per capture (>= 1).
+        frames: camera frames averaged per capture (>= 1); None: 16 for a camera whose
+            frames have 8 bits, 8 for deeper ones
+            (:func:`~viewcomp.calib.hw.frames.default_frames`).
         settle: seconds added to the measured latency before a frame counts as showing the
             pattern (a projector whose light settles slowly: dynamic iris, lamp).
         clock: the devices' clock (None: :class:`~viewcomp.calib.hw.clock.MonotonicClock`).
@@ -199,7 +201,7 @@ def run_capture(
             stopped, or the folder cannot hold a capture set. Nothing is written then.
         FitError: the finished set fails the geometric calibration; nothing is written.
     """
-    if frames < 1:
+    if frames is not None and frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
     if settle < 0:
         raise ValueError(f"settle must be >= 0 seconds, got {settle}")

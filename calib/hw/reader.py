@@ -44,13 +44,16 @@ class FrameReader:
         self.dropped = 0
         #: failed reads retried
         self.failed = 0
+        #: the latest frame read (None before the first)
+        self.last: Frame | None = None
 
     def grab(self) -> Frame:
         """One frame, retrying failed reads (``retries`` in a row at most)."""
         errors = 0
         while True:
             try:
-                return self.camera.grab()
+                self.last = self.camera.grab()
+                return self.last
             except FrameError as e:
                 errors += 1
                 self.failed += 1

@@ -12,6 +12,7 @@ import numpy as np
 from viewcomp.calib.hw.autoexposure import search_exposure
 from viewcomp.calib.hw.bracket import Bracket
 from viewcomp.calib.hw.dimming import Dimmer
+from viewcomp.calib.hw.frames import FRAMES_DEEP, default_frames
 from viewcomp.calib.hw.hdrresponse import debevec_curve, fit_response
 from viewcomp.calib.hw.interface import Camera, Clock, DeviceError, Projector
 from viewcomp.calib.hw.latency import MAX_LATENCY, measure_latency
@@ -24,7 +25,9 @@ Log = Callable[[str], None]
 
 class Session:
     """The devices of one capture and how long to wait for a pattern (``latency`` s, measured
-    by :meth:`prepare`, plus ``settle``); ``frames`` camera frames averaged per capture."""
+    by :meth:`prepare`, plus ``settle``); ``frames`` camera frames averaged per capture (None:
+    chosen by :meth:`prepare` from the camera's frames,
+    :func:`~viewcomp.calib.hw.frames.default_frames`)."""
 
     def __init__(
         self,
@@ -33,7 +36,7 @@ class Session:
         clock: Clock,
         reader: FrameReader,
         log: Log,
-        frames: int,
+        frames: int | None,
         settle: float,
     ) -> None:
         self.projector = projector
@@ -41,7 +44,8 @@ class Session:
         self.clock = clock
         self.reader = reader
         self.log = log
-        self.frames = frames
+        self.frames = FRAMES_DEEP if frames is None else frames
+        self._auto_frames = frames is None
         self.settle = settle
         self.latency = MAX_LATENCY
         self.bracket: Bracket | None = None
@@ -71,6 +75,12 @@ class Session:
             self.log(
                 f"projector -> camera latency: {found * 1000:.0f} ms (frames that start "
                 "earlier are dropped)"
+            )
+        if self._auto_frames and self.reader.last is not None:
+            self.frames = default_frames(self.reader.last)
+            self.log(
+                f"averaging {self.frames} frames per capture ({self.reader.last.bits}-bit "
+                "frames; --frames to change it)"
             )
         if search:
             search_exposure(self.camera, self.projector, self.reader, self.latency, self.log)

@@ -79,7 +79,13 @@ def _add_device_arguments(p: argparse.ArgumentParser) -> None:
 def _add_capture_arguments(p: argparse.ArgumentParser) -> None:
     """How each capture is taken: frames, settling, exposure, retries, automatic modes, HDR
     and the camera's resolution."""
-    p.add_argument("--frames", type=int, default=8, help="frames averaged per capture (default 8)")
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=None,
+        help="frames averaged per capture (default 16 for a camera that delivers 8-bit frames, "
+        "whose codes and codec only the sensor's noise dithers; 8 for deeper ones)",
+    )
     p.add_argument(
         "--settle",
         type=float,
@@ -224,7 +230,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
     """--retries, --frames and --settle in their ranges."""
     if args.retries < 0:
         raise UsageError(f"--retries must be >= 0, got {args.retries}")
-    if args.frames < 1:
+    if args.frames is not None and args.frames < 1:
         raise UsageError(f"--frames must be at least 1, got {args.frames}")
     if args.settle is not None and args.settle < 0:
         raise UsageError(f"--settle is seconds >= 0, got {args.settle}")

@@ -128,7 +128,7 @@ def test_a_webcam_measures_the_colour_mixing_better_with_a_larger_rise(
     for a in ("60", "125"):
         big, small = seen[255][a]["compensated"], seen[130][a]["compensated"]
         print(f"\nwebcam spectralon {a} deg: rise to 255 {big:.3f} dE, to 130 {small:.3f}")
-        # measured: 0.806 vs 0.906 (60 deg), 0.849 vs 0.923 (125 deg)
+        # measured at the default 16 frames: 0.729 vs 0.881 (60 deg), 0.761 vs 0.847 (125 deg)
         assert big < 0.95 * small
 
 

@@ -253,7 +253,9 @@ def test_capture_of_a_still_camera_passes_on_every_material(
 ) -> None:
     material = _material(materials_dir, name)
     args = ["capture", str(tmp_path / "c"), "--simulate", "--material", str(material)]
-    args += ["--sim-size", f"{SIZE[0]}x{SIZE[1]}", "--yes"] + (["--hdr"] if hdr else [])
+    # 8 frames a capture (the simulated camera's default is 16): the move check is the subject
+    args += ["--sim-size", f"{SIZE[0]}x{SIZE[1]}", "--frames", "8", "--yes"]
+    args += ["--hdr"] if hdr else []
     rc = main(args)
     err = capsys.readouterr().err
     assert _no_move_refusal(err), err
@@ -276,7 +278,7 @@ def test_the_reported_capture_is_not_refused_as_moved(materials_dir: Path, tmp_p
     # 6.3 camera px since screen/gray" before
     material = _material(materials_dir, GLOSSY)
     args = ["capture", str(tmp_path / "c"), "--simulate", "--material", str(material)]
-    rc = main([*args, "--sim-size", "320x160", "--yes"])
+    rc = main([*args, "--sim-size", "320x160", "--frames", "8", "--yes"])
     err = capsys.readouterr().err
     assert _no_move_refusal(err), err
     assert rc == 0 or ("saturated" in err and "--hdr" in err), err

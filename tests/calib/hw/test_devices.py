@@ -16,7 +16,7 @@ import pytest
 from viewcomp.calib.hw.backends import open_camera
 from viewcomp.calib.hw.bracket import exposure_and_gain
 from viewcomp.calib.hw.clock import SimClock
-from viewcomp.calib.hw.frames import average_frames
+from viewcomp.calib.hw.frames import FRAMES_8BIT, FRAMES_DEEP, average_frames, default_frames
 from viewcomp.calib.hw.gphoto2_camera import nearest, parse_iso, parse_shutter
 from viewcomp.calib.hw.hdrresponse import debevec_curve, fit_response
 from viewcomp.calib.hw.interface import DeviceError, Frame, FrameError
@@ -203,6 +203,31 @@ def test_average_frames_scales_deep_and_mono_frames() -> None:
     mono = [_frame(np.full((2, 2), v, np.uint8)) for v in (10, 20)]
     avg = average_frames(mono)
     assert avg.shape == (2, 2, 3) and np.all(avg == 15 * 257)
+
+
+def test_the_default_frame_count_follows_the_cameras_bit_depth() -> None:
+    assert default_frames(_frame(np.zeros((2, 2, 3), np.uint8))) == FRAMES_8BIT == 16
+    assert default_frames(_frame(np.zeros((2, 2), np.uint16), bits=12)) == FRAMES_DEEP == 8
+
+
+@pytest.mark.parametrize(("profile", "want"), [("webcam", FRAMES_8BIT), ("mono12", FRAMES_DEEP)])
+def test_a_session_without_frames_takes_the_cameras_default(profile: str, want: int) -> None:
+    # the emulated devices, as `capture --emulate` opens them: the count is read from the
+    # frames the latency measurement grabbed, and said
+    from viewcomp.calib.emu.emulator import open_emulator
+    from viewcomp.calib.hw.session import Session
+
+    emu = open_emulator(profile, "magenta", seed=0, projector_size=(64, 32))
+    lines: list[str] = []
+    reader = FrameReader(emu.camera, emu.clock, lines.append)
+    session = Session(emu.projector, emu.camera, emu.clock, reader, lines.append, None, 0.0)
+    session.prepare(False, None, parse_response("linear"), False)
+    assert session.frames == want
+    assert any(f"averaging {want} frames per capture" in line for line in lines)
+    given = Session(emu.projector, emu.camera, emu.clock, reader, lines.append, 3, 0.0)
+    given.prepare(False, None, parse_response("linear"), False)
+    assert given.frames == 3
+    emu.close()
 
 
 class Flaky:
