@@ -13,7 +13,7 @@ from viewcomp.calib.hw.autoexposure import search_exposure
 from viewcomp.calib.hw.bracket import Bracket
 from viewcomp.calib.hw.dimming import Dimmer
 from viewcomp.calib.hw.frames import FRAMES_DEEP, default_frames
-from viewcomp.calib.hw.hdrresponse import debevec_curve, fit_response
+from viewcomp.calib.hw.hdrresponse import choose_response, debevec_curve
 from viewcomp.calib.hw.interface import Camera, Clock, DeviceError, Projector
 from viewcomp.calib.hw.latency import MAX_LATENCY, measure_latency
 from viewcomp.calib.hw.reader import FrameReader
@@ -115,16 +115,13 @@ class Session:
             return Response(kind="linear")
         frames8 = [r if r.dtype == np.uint8 else np.rint(r / 257.0).astype(np.uint8) for r in raws]
         try:
-            found, misfit = fit_response(debevec_curve(frames8, rels))
+            found, said = choose_response(debevec_curve(frames8, rels), frames8, rels)
         except (ValueError, np.linalg.LinAlgError) as e:
             raise DeviceError(
                 f"the camera's response could not be estimated from the bracket ({e}): give "
                 "--response (srgb, linear or a gamma) or a --rig with one"
             ) from e
-        self.log(
-            f"camera response estimated from the bracket (OpenCV's Debevec): {found.spec!r} "
-            f"(misfit {misfit:.3f} in log light)"
-        )
+        self.log(f"camera response estimated from the bracket (OpenCV's Debevec): {said}")
         return found
 
     def _show(self, pattern: np.ndarray) -> float:

@@ -169,10 +169,10 @@ class Device:
 
 @dataclass(frozen=True, kw_only=True)
 class Camera(Device):
-    """The calibration camera: a :class:`Device` plus its response (``"linear"``, ``"srgb"``
-    or a gamma g > 0, see :mod:`viewcomp.calib.world.response`)."""
+    """The calibration camera: a :class:`Device` plus its response (``"linear"``, ``"srgb"``,
+    a gamma g > 0 or a table, see :mod:`viewcomp.calib.world.response`)."""
 
-    response: str | float
+    response: str | float | tuple[float, ...]
 
     def response_curve(self) -> Response:
         """The parsed response curve."""
@@ -502,6 +502,15 @@ def _toml_value(value: Any) -> str:
     raise TypeError(f"cannot write {type(value).__name__} as TOML")
 
 
+def _table_lines(name: str, table: tuple[float, ...], unit: str) -> list[str]:
+    """A response table as a TOML array of several lines, 8 entries a line."""
+    rows = [
+        "    " + ", ".join(_toml_value(float(v)) for v in table[k : k + 8]) + ","
+        for k in range(0, len(table), 8)
+    ]
+    return [f"{name + ' = [':<40} # {unit}", *rows, "]"]
+
+
 def rig_to_toml(rig: Rig) -> str:
     """rig.toml text for ``rig``; :func:`load_rig` of it gives back an equal :class:`Rig`.
 
@@ -514,7 +523,7 @@ def rig_to_toml(rig: Rig) -> str:
         "fov_y": "degrees, vertical",
         "principal_point": "pixels",
         "distortion": "k1, k2, p1, p2, k3 (OpenCV order)",
-        "response": '"linear", "srgb", or g: value = linear^(1/g)',
+        "response": '"linear", "srgb", g: value = linear^(1/g), or a table',
         "distance": "metres from the screen centre",
         "height": "eye height (y), metres",
         "space": '"projector" or "camera"',
@@ -543,6 +552,9 @@ def rig_to_toml(rig: Rig) -> str:
                 "height",
             ):
                 value = [float(v) for v in value] if isinstance(value, tuple) else float(value)
+            if f.name == "response" and isinstance(value, tuple):
+                lines += _table_lines(f.name, value, units[f.name])
+                continue
             text = f"{f.name} = {_toml_value(value)}"
             if f.name in units:
                 text = f"{text:<40} # {units[f.name]}"

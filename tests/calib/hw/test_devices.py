@@ -18,7 +18,12 @@ from viewcomp.calib.hw.bracket import exposure_and_gain
 from viewcomp.calib.hw.clock import SimClock
 from viewcomp.calib.hw.frames import FRAMES_8BIT, FRAMES_DEEP, average_frames, default_frames
 from viewcomp.calib.hw.gphoto2_camera import nearest, parse_iso, parse_shutter
-from viewcomp.calib.hw.hdrresponse import debevec_curve, fit_response
+from viewcomp.calib.hw.hdrresponse import (
+    choose_response,
+    debevec_curve,
+    fit_response,
+    response_table,
+)
 from viewcomp.calib.hw.interface import DeviceError, Frame, FrameError
 from viewcomp.calib.hw.opencv_camera import OpenCVCamera
 from viewcomp.calib.hw.progress import Progress, duration
@@ -286,6 +291,39 @@ def test_the_response_is_recovered_from_a_bracket() -> None:
         found, misfit = fit_response(debevec_curve(frames, stops))
         assert check(found), (spec, found)
         assert misfit < 0.15
+        # the bracket's stops agree no better through Debevec's curve as a table: the model
+        chosen, said = choose_response(debevec_curve(frames, stops), frames, stops)
+        assert chosen == found and "through the curve as a table" in said
+
+
+def test_an_s_shaped_camera_curve_is_kept_as_a_table() -> None:
+    # the emulated webcam's own tone curve (its truth, not a model viewcomp fits): neither
+    # sRGB nor a power law, so the stops agree only through the table, which follows it
+    from viewcomp.calib.emu.camera import tone_curve
+
+    rng = np.random.default_rng(2)
+    light = np.tile(np.geomspace(0.002, 4.0, 300)[None, :, None], (30, 1, 3))
+    stops = [1.0, 1 / 4, 1 / 16, 1 / 64]
+    xs = np.linspace(0.0, 1.0, 100001)
+    ys = tone_curve(xs, 0.25).astype(np.float64)
+    frames = []
+    for s in stops:
+        lin = np.clip(light * s + rng.normal(0, 0.001, light.shape), 0, 1)
+        frames.append(np.rint(np.interp(lin, xs, ys) * 255).astype(np.uint8))
+    curve = debevec_curve(frames, stops)
+    model, _ = fit_response(curve)
+    chosen, said = choose_response(curve, frames, stops)
+    assert chosen.kind == "table" and chosen == response_table(curve), said
+    codes = np.arange(32, 225) / 255.0
+    true = np.interp(codes, ys, xs)
+    mid = np.interp(128 / 255.0, ys, xs)
+
+    def off(resp: object) -> float:  # worst relative error, both normalised at code 128
+        got = resp.decode(codes) / resp.decode(np.array([128 / 255.0]))  # type: ignore[attr-defined]
+        return float(np.max(np.abs(got / (true / mid) - 1.0)))
+
+    print(f"\ntable {off(chosen):.3f}, {model.spec!r} {off(model):.3f} off the true curve")
+    assert off(chosen) < 0.05 and off(model) > 0.1
 
 
 def test_progress_says_the_time_left_on_the_clock() -> None:

@@ -62,3 +62,37 @@ def test_error_names_allowed_values() -> None:
         parse_response("rec709")
     msg = str(info.value)
     assert "rec709" in msg and '"linear"' in msg and '"srgb"' in msg and "number" in msg
+
+
+def test_a_table_decodes_between_its_entries_and_round_trips() -> None:
+    # entries of x^2 at 5 codes: decode interpolates linearly between them, encode inverts it
+    t = parse_response([0.0, 0.0625, 0.25, 0.5625, 1.0])
+    assert t.kind == "table" and t.spec == (0.0, 0.0625, 0.25, 0.5625, 1.0)
+    assert float(t.decode(np.float32(0.25))) == pytest.approx(0.0625)
+    assert float(t.decode(np.float32(0.375))) == pytest.approx((0.0625 + 0.25) / 2)
+    x = np.linspace(0.0, 1.0, 1001, dtype=np.float32)
+    assert t.encode(t.decode(x)) == pytest.approx(x, abs=1e-6)
+    assert parse_response(t.spec) == t
+    # a table of an sRGB camera's 256 codes is the sRGB curve at the codes
+    srgb = parse_response("srgb")
+    codes = np.arange(256) / 255.0
+    table = parse_response([float(v) for v in srgb.decode(codes)])
+    assert table.decode(codes) == pytest.approx(srgb.decode(codes), abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("bad", "said"),
+    [
+        ([0.0], "2 to 65536 entries"),
+        ([0.0, 0.5, 0.4, 1.0], "increase at every entry (entry 2"),
+        ([0.1, 0.5, 1.0], "from 0 (black) to 1"),
+        ([0.0, 0.5, 0.9], "from 0 (black) to 1"),
+        ([0.0, float("nan"), 1.0], "finite"),
+        ([0.0, "half", 1.0], "numbers only"),
+        ([0.0, True, 1.0], "numbers only"),
+    ],
+)
+def test_bad_tables_are_refused_saying_why(bad: list, said: str) -> None:
+    with pytest.raises(ValueError) as info:
+        parse_response(bad)
+    assert said in str(info.value)

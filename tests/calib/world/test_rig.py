@@ -83,10 +83,20 @@ def test_toml_round_trip(tmp_path: Path) -> None:
         camera=replace(rig.camera, distortion=(0.1, -0.02, 0.001, 0.0, 1e-5), response=2.2),
         capture=CaptureSpec(space="camera"),
     )
-    for r in (rig, fancy):
+    # a response table, as `capture --hdr` writes one for an S-shaped camera curve
+    table = tuple(float(f"{v:.7g}") for v in np.linspace(0.0, 1.0, 256) ** 2.1)
+    tabled = replace(rig, camera=replace(rig.camera, response=table))
+    for r in (rig, fancy, tabled):
         path = tmp_path / "rig.toml"
         path.write_text(rig_to_toml(r))
         assert load_rig(path) == r
+    text = rig_to_toml(tabled)
+    assert max(len(line) for line in text.splitlines()) < 120  # 8 entries a line
+    bad = text.replace("1.0,\n]", "0.9,\n]")
+    assert bad != text
+    path.write_text(bad)
+    with pytest.raises(RigError, match="response: a camera response table goes from 0"):
+        load_rig(path)
 
 
 def test_viewer_height_defaults_to_camera_y() -> None:
