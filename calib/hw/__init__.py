@@ -10,7 +10,8 @@
   out; ``session`` its set-up and one fresh capture.
 - ``camlock``: locking the camera's automatic modes; ``latency``: the projector -> camera
   latency sentinel; ``autoexposure``: the exposure search; ``reader``: fresh frames
-  (presentation sync) with retries; ``frames``: averaging frames into a capture;
+  (presentation sync) with retries; ``frames``: averaging frames into a capture, and how
+  many by default;
   ``progress``: progress with the time left.
 - ``bracket``: HDR brackets in whole projector refresh periods; ``hdrresponse``: the camera's
   response from a bracket.

@@ -15,7 +15,14 @@ models describes keeps the model, which noise does not bend.
 Debevec's curve is poorly constrained where few pixels are well exposed in two stops: near
 black and at the top codes (on the emulated webcam 16 % off at code 240, 54 % at 247), so the
 table takes it over codes :data:`TABLE_LOW` .. :data:`TABLE_HIGH` and continues it below in
-proportion to the code and above with its log-log slope over the codes just below.
+proportion to the code and above with its log-log slope over the codes just below. Within that
+range its per-code noise is smoothed away by a polynomial of degree :data:`TABLE_DEGREE` in
+log light: a camera's curve is smooth, and wiggles of a few per cent in it are local slope
+errors that an HDR merge turns into errors between patterns taken from different stops.
+Measured on the emulated webcam's HDR spectralon row (ratio to ideal captures at 60 / 125
+degrees; table off the true curve over codes 32-224, RMS): Debevec's curve as it is 1.26 /
+1.22 (2.2 %), degree 5 1.15 / 1.10 (1.0 %), degree 7 1.08 / 1.05 (1.2 %), degree 3 too stiff
+to beat sRGB (1.42 / 1.33 with sRGB); the true curve 1.17 at 60 degrees (16 frames).
 """
 
 from __future__ import annotations
@@ -30,6 +37,8 @@ CODES = np.arange(8, 248)
 #: Codes over which a table follows Debevec's curve (module doc).
 TABLE_LOW = 16
 TABLE_HIGH = 224
+#: Degree of the polynomial (in log light over the code) that smooths the table.
+TABLE_DEGREE = 7
 #: The table is kept when its stop disagreement is at most this share of the model's.
 TABLE_GAIN = 0.8
 #: Codes (8-bit) a pixel needs in both stops to count in their disagreement.
@@ -74,10 +83,16 @@ def response_table(curve: np.ndarray) -> Response:
     code, 0 at code 0 and 1 at 255, strictly increasing."""
     c = np.maximum(np.asarray(curve, np.float64), 1e-12)
     k = np.arange(256, dtype=np.float64)
+    inside = k[TABLE_LOW : TABLE_HIGH + 1]
+    smooth = np.polynomial.Polynomial.fit(
+        inside, np.log(c[TABLE_LOW : TABLE_HIGH + 1]), TABLE_DEGREE
+    )
+    c[TABLE_LOW : TABLE_HIGH + 1] = np.exp(smooth(inside))
     y = c.copy()
     y[:TABLE_LOW] = c[TABLE_LOW] * k[:TABLE_LOW] / TABLE_LOW
     lo = TABLE_HIGH - 32
     slope = np.log(c[TABLE_HIGH] / c[lo]) / np.log(TABLE_HIGH / lo)
+    # light grows at least in proportion to the code up there (a shoulder compresses it)
     y[TABLE_HIGH:] = c[TABLE_HIGH] * (k[TABLE_HIGH:] / TABLE_HIGH) ** max(slope, 1.0)
     y = np.maximum.accumulate(y) / y[255]
     y = y + 1e-6 * k / 255.0  # strictly increasing where the curve is flat
