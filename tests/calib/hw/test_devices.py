@@ -235,6 +235,25 @@ def test_a_session_without_frames_takes_the_cameras_default(profile: str, want: 
     emu.close()
 
 
+def test_the_table_smooths_away_a_curves_per_code_wiggles() -> None:
+    # the emulated webcam's true curve at every code, each code's light off by 2 % at random
+    # (Debevec's per-code noise): the table follows the curve, not the wiggles
+    from viewcomp.calib.emu.camera import tone_curve
+
+    xs = np.linspace(0.0, 1.0, 100001)
+    ys = tone_curve(xs, 0.25).astype(np.float64)
+    true = np.interp(np.arange(256) / 255.0, ys, xs)
+    wiggly = np.maximum(true, 1e-6) * (1.0 + 0.02 * np.random.default_rng(5).standard_normal(256))
+    table = response_table(wiggly)
+    k = np.arange(32, 225)
+    got = table.decode(k / 255.0) / table.decode(np.array([128 / 255.0]))
+    rel = got / (true[k] / true[128]) - 1.0
+    noisy = wiggly[k] / wiggly[128] / (true[k] / true[128]) - 1.0
+    rms = float(np.sqrt(np.mean(rel**2)))
+    print(f"\nwiggles {np.sqrt(np.mean(noisy**2)):.4f} RMS, the table {rms:.4f} off the curve")
+    assert rms < 0.006 and float(np.sqrt(np.mean(noisy**2))) > 0.015
+
+
 class Flaky:
     """A camera whose reads follow ``script``: 'ok', 'fail' (FrameError) or 'dead'."""
 
