@@ -174,9 +174,7 @@ def run_capture(
             devices'); None: the example rig, written with a "to complete" note.
         prompt: asks the user to swap screens; returning False stops (nothing written).
         log: progress and warnings.
-        frames: camera frames averaged per capture (>= 1); None: 16 for a camera whose
-            frames have 8 bits, 8 for deeper ones
-            (:func:`~viewcomp.calib.hw.frames.default_frames`).
+        frames: frames averaged per capture (>= 1; None: :func:`.frames.default_frames`).
         settle: seconds added to the measured latency before a frame counts as showing the
             pattern (a projector whose light settles slowly: dynamic iris, lamp).
         clock: the devices' clock (None: :class:`~viewcomp.calib.hw.clock.MonotonicClock`).

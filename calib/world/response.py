@@ -153,3 +153,11 @@ def _table(spec: Sequence[object]) -> Response:
             f"{t[k + 1]:g} after {t[k]:g})"
         )
     return Response(kind="table", table=tuple(float(v) for v in t))
+
+
+def table_rows(table: Sequence[float]) -> list[str]:
+    """A table's entries as the indented rows of a TOML array, 8 a line (rig.toml)."""
+    return [
+        "    " + ", ".join(repr(float(v)) for v in table[k : k + 8]) + ","
+        for k in range(0, len(table), 8)
+    ]

@@ -22,7 +22,7 @@ import numpy as np
 
 from viewcomp.calib.errors import RigError
 from viewcomp.calib.world.lens import distort_normalised, undistort_normalised
-from viewcomp.calib.world.response import Response, parse_response
+from viewcomp.calib.world.response import Response, parse_response, table_rows
 
 Vec3 = tuple[float, float, float]
 CaptureSpace = Literal["projector", "camera"]
@@ -502,15 +502,6 @@ def _toml_value(value: Any) -> str:
     raise TypeError(f"cannot write {type(value).__name__} as TOML")
 
 
-def _table_lines(name: str, table: tuple[float, ...], unit: str) -> list[str]:
-    """A response table as a TOML array of several lines, 8 entries a line."""
-    rows = [
-        "    " + ", ".join(_toml_value(float(v)) for v in table[k : k + 8]) + ","
-        for k in range(0, len(table), 8)
-    ]
-    return [f"{name + ' = [':<40} # {unit}", *rows, "]"]
-
-
 def rig_to_toml(rig: Rig) -> str:
     """rig.toml text for ``rig``; :func:`load_rig` of it gives back an equal :class:`Rig`.
 
@@ -552,8 +543,8 @@ def rig_to_toml(rig: Rig) -> str:
                 "height",
             ):
                 value = [float(v) for v in value] if isinstance(value, tuple) else float(value)
-            if f.name == "response" and isinstance(value, tuple):
-                lines += _table_lines(f.name, value, units[f.name])
+            if f.name == "response" and isinstance(value, tuple):  # a table: 8 entries a line
+                lines += [f"{'response = [':<40} # {units['response']}", *table_rows(value), "]"]
                 continue
             text = f"{f.name} = {_toml_value(value)}"
             if f.name in units:
