@@ -4,7 +4,7 @@ A camera stores *encoded* values; the math of docs/MODEL.md needs *linear* light
 normalised to 0..1 here: encoded 0..1 is the pixel code divided by its full scale (255 or
 65535), linear 0..1 is light in the camera's units (1 = the light that reaches full scale).
 
-The three responses of ``[camera] response`` in rig.toml (docs/INTERFACES.md):
+The four responses of ``[camera] response`` in rig.toml (docs/INTERFACES.md):
 
 - ``"linear"``: value = linear.
 - ``"srgb"``: the IEC 61966-2-1 sRGB transfer function (linear segment near black, then a
