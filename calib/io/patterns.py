@@ -19,12 +19,17 @@ from viewcomp.calib.io.imageio import write_png
 # The gray pattern U's level in every channel (Table 1); Eq. 25's feedback divides by it.
 GRAY_LEVEL = 110.0
 
-TABLE1_COLOURS: dict[str, tuple[int, int, int]] = {
-    "red": (130, 110, 110),
-    "green": (110, 130, 110),
-    "blue": (110, 110, 130),
-    "gray": (int(GRAY_LEVEL),) * 3,
-}
+# The colour patterns' own channel in Table 1 (the others at the gray level).
+TABLE1_COLOUR_LEVEL = 130
+
+
+def table1_colours(level: int = TABLE1_COLOUR_LEVEL) -> dict[str, tuple[int, int, int]]:
+    """Red, green and blue at ``level`` (111..255) in their own channel and the gray level in
+    the others, and gray: the RGB triple of each uniform pattern of Table 1."""
+    if not int(GRAY_LEVEL) < int(level) <= 255:
+        raise ValueError(f"colour_level must be in 111..255, got {level!r}")
+    c, g = int(level), int(GRAY_LEVEL)
+    return {"red": (c, g, g), "green": (g, c, g), "blue": (g, g, c), "gray": (g, g, g)}
 
 
 def _check_size(w: int, h: int, min_w: int = 1, min_h: int = 1) -> None:
@@ -52,23 +57,17 @@ def ramp_levels(w: int) -> np.ndarray:
 CAMERA_COLOUR_LEVEL = 255
 
 
-def table1_patterns(w: int, h: int, colour_level: int | None = None) -> dict[str, np.ndarray]:
+def table1_patterns(
+    w: int, h: int, colour_level: int = TABLE1_COLOUR_LEVEL
+) -> dict[str, np.ndarray]:
     """Table 1 patterns, each (h, w, 3) uint8 encoded: red (130,110,110), green (110,130,110),
     blue (110,110,130), gray U (110,110,110), ramp S (every row :func:`ramp_levels` in all
-    three channels) and black (0,0,0). ``colour_level``: the colour patterns' own channel in
-    place of 130 (> 110, <= 255; None: Table 1's)."""
+    three channels) and black (0,0,0). ``colour_level``: the colour patterns' own channel
+    (111..255; :func:`table1_colours`)."""
     _check_size(w, h, min_w=2)
-    colours = dict(TABLE1_COLOURS)
-    if colour_level is not None:
-        if not int(GRAY_LEVEL) < int(colour_level) <= 255:
-            raise ValueError(f"colour_level must be in 111..255, got {colour_level!r}")
-        for j, name in enumerate(("red", "green", "blue")):
-            rgb = [int(GRAY_LEVEL)] * 3
-            rgb[j] = int(colour_level)
-            colours[name] = (rgb[0], rgb[1], rgb[2])
     out = {
         name: np.broadcast_to(np.array(rgb, np.uint8), (h, w, 3)).copy()
-        for name, rgb in colours.items()
+        for name, rgb in table1_colours(colour_level).items()
     }
     levels = ramp_levels(w)
     out["ramp"] = np.broadcast_to(levels[None, :, None], (h, w, 3)).copy()
