@@ -20,7 +20,7 @@ The four responses of ``[camera] response`` in rig.toml (docs/INTERFACES.md):
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -155,9 +155,14 @@ def _table(spec: Sequence[object]) -> Response:
     return Response(kind="table", table=tuple(float(v) for v in t))
 
 
-def table_rows(table: Sequence[float]) -> list[str]:
-    """A table's entries as the indented rows of a TOML array, 8 a line (rig.toml)."""
-    return [
-        "    " + ", ".join(repr(float(v)) for v in table[k : k + 8]) + ","
+def table_lines(
+    name: str, table: Sequence[float], comment: str, fmt: Callable[[float], str]
+) -> list[str]:
+    """A table as the lines of a TOML array ``name`` in rig.toml: the opening line with its
+    ``comment``, the entries 8 a line, each written by ``fmt`` (the rig writer's own value
+    formatter), and the closing bracket."""
+    rows = [
+        "    " + ", ".join(fmt(float(v)) for v in table[k : k + 8]) + ","
         for k in range(0, len(table), 8)
     ]
+    return [f"{name + ' = [':<40} # {comment}", *rows, "]"]

@@ -22,7 +22,7 @@ import numpy as np
 
 from viewcomp.calib.errors import RigError
 from viewcomp.calib.world.lens import distort_normalised, undistort_normalised
-from viewcomp.calib.world.response import Response, parse_response, table_rows
+from viewcomp.calib.world.response import Response, parse_response, table_lines
 
 Vec3 = tuple[float, float, float]
 CaptureSpace = Literal["projector", "camera"]
@@ -544,7 +544,7 @@ def rig_to_toml(rig: Rig) -> str:
             ):
                 value = [float(v) for v in value] if isinstance(value, tuple) else float(value)
             if f.name == "response" and isinstance(value, tuple):  # a table: 8 entries a line
-                lines += [f"{'response = [':<40} # {units['response']}", *table_rows(value), "]"]
+                lines += table_lines(f.name, value, units[f.name], _toml_value)
                 continue
             text = f"{f.name} = {_toml_value(value)}"
             if f.name in units:

@@ -235,13 +235,19 @@ def test_a_session_without_frames_takes_the_cameras_default(profile: str, want: 
     emu.close()
 
 
-def test_the_table_smooths_away_a_curves_per_code_wiggles() -> None:
-    # the emulated webcam's true curve at every code, each code's light off by 2 % at random
-    # (Debevec's per-code noise): the table follows the curve, not the wiggles
+def _webcam_tone() -> tuple[np.ndarray, np.ndarray]:
+    """The emulated webcam's own tone curve (its truth, not a model viewcomp fits), tabulated:
+    (linear light xs, encoded 0..1 ys), so np.interp(code, ys, xs) is its inverse."""
     from viewcomp.calib.emu.camera import tone_curve
 
     xs = np.linspace(0.0, 1.0, 100001)
-    ys = tone_curve(xs, 0.25).astype(np.float64)
+    return xs, tone_curve(xs, 0.25).astype(np.float64)
+
+
+def test_the_table_smooths_away_a_curves_per_code_wiggles() -> None:
+    # the emulated webcam's true curve at every code, each code's light off by 2 % at random
+    # (Debevec's per-code noise): the table follows the curve, not the wiggles
+    xs, ys = _webcam_tone()
     true = np.interp(np.arange(256) / 255.0, ys, xs)
     wiggly = np.maximum(true, 1e-6) * (1.0 + 0.02 * np.random.default_rng(5).standard_normal(256))
     table = response_table(wiggly)
@@ -318,13 +324,10 @@ def test_the_response_is_recovered_from_a_bracket() -> None:
 def test_an_s_shaped_camera_curve_is_kept_as_a_table() -> None:
     # the emulated webcam's own tone curve (its truth, not a model viewcomp fits): neither
     # sRGB nor a power law, so the stops agree only through the table, which follows it
-    from viewcomp.calib.emu.camera import tone_curve
-
     rng = np.random.default_rng(2)
     light = np.tile(np.geomspace(0.002, 4.0, 300)[None, :, None], (30, 1, 3))
     stops = [1.0, 1 / 4, 1 / 16, 1 / 64]
-    xs = np.linspace(0.0, 1.0, 100001)
-    ys = tone_curve(xs, 0.25).astype(np.float64)
+    xs, ys = _webcam_tone()
     frames = []
     for s in stops:
         lin = np.clip(light * s + rng.normal(0, 0.001, light.shape), 0, 1)
