@@ -28,6 +28,7 @@ from viewcomp.calib.fit.pixel import (
     calibrate_pixel,
 )
 from viewcomp.calib.fit.quality import capture_quality, ramp_residual
+from viewcomp.calib.geo.edgezone import edge_zone
 from viewcomp.calib.io.bundle import BundleError
 from viewcomp.calib.io.calibration_bundle import load_calibration, save_calibration
 from viewcomp.calib.io.captureset import REQUIRED, CaptureSet
@@ -154,7 +155,13 @@ def calibrate(
         raise FitError(f"white|screen/{missing[0]}", "missing from the capture set")
     clipped = cs.clipped_pixels()
     say("fitting the per-pixel method (colour mixing, response, specular lobe)")
-    pixel = calibrate_pixel(white, screen, geometry, smooth_px, ~clipped, lobe_param, guide_px)
+    # a camera-space set's edge zone holds copies: the lobe's fit leaves it out
+    filled = (
+        None if geometry_stats is None else edge_zone(clipped.shape, geometry_stats["edge_zone_px"])
+    )
+    pixel = calibrate_pixel(
+        white, screen, geometry, smooth_px, ~clipped, lobe_param, guide_px, filled
+    )
     info: dict[str, Any] = {
         "captures": str(cs.path),
         "has_black": "black" in screen,
@@ -165,16 +172,9 @@ def calibrate(
     }
     if maps is not None:
         maps["ramp_residual"] = ramp_residual(pixel, screen["ramp"])
-    # The paper's image-wide statistics leave out the highlight (where the fitted lobe seen
-    # by the camera exceeds a quarter of the diffuse level) and clipped pixels.
-    lobe_cam = pixel.lobe.at(geometry, geometry.camera)
-    stat_mask = ~clipped & np.all(lobe_cam <= 0.25 * np.maximum(pixel.lobe.baseline, 1e-6), -1)
-    del lobe_cam
-    if np.mean(stat_mask) < 0.5:
-        stat_mask = ~clipped
     say("fitting the paper's method")
     try:
-        paper = calibrate_paper(white, screen, geometry, fit_mode, stat_mask)
+        paper = calibrate_paper(white, screen, geometry, fit_mode, _stat_mask(pixel, clipped))
     except FitError as exc:
         paper = None
         info["paper_error"] = str(exc)
@@ -183,6 +183,16 @@ def calibrate(
         info["geometry"] = geometry_stats
     info.update({"mono": mono_info} if mono else {})
     return Calibration(rig=cs.rig, paper=paper, pixel=pixel, info=info)
+
+
+def _stat_mask(pixel: PixelCalibration, clipped: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels the paper's image-wide statistics use - not clipped and off
+    the highlight (where the fitted lobe seen by the camera exceeds a quarter of the diffuse
+    level), or all unclipped ones where that leaves under half the frame."""
+    geometry = pixel.geometry
+    lobe_cam = pixel.lobe.at(geometry, geometry.camera)
+    mask = ~clipped & np.all(lobe_cam <= 0.25 * np.maximum(pixel.lobe.baseline, 1e-6), -1)
+    return mask if np.mean(mask) >= 0.5 else ~clipped
 
 
 def _is_mono(cs: CaptureSet) -> bool:

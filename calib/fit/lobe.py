@@ -15,7 +15,12 @@ smaller residual is kept.
 
 The baseline is the higher of two levels: the floor of a fit of b + c exp(-k t^2) to the
 outer part of the curve (a Phong lobe's shape, and a smooth tail for any lobe), and the level
-at the farthest angles seen (so no decrease the camera never saw is extrapolated). Outside
+at the farthest angles seen (so no decrease the camera never saw is extrapolated). A camera
+coarser than the projector sees the frame's outer lines mixed with the unlit surround, and
+those lines (the edge zone, :mod:`viewcomp.calib.geo.edgezone`) hold copies of inner values:
+they are left out of the samples, and over their angles - the frame's farthest, which a finer
+camera measures - the curve continues its straight-line trend (never rising) before the
+baseline is read, so that a coarse camera's baseline is not the level of nearer angles. Outside
 the angles the camera saw: nearer the peak than any pixel seen (the peak clipped or outside
 the image), the nearest value is held; beyond the farthest, the lobe is 0 (the diffuse level),
 reached smoothly (the tail's decay exp(-k t^2) from its last value, k >= 5). It is never negative
@@ -44,6 +49,10 @@ TAIL_MIN_RATE = 5.0
 
 #: Share of the seen coordinate range, at its far end, whose median level is the baseline.
 FAR_SHARE = 0.03
+
+#: Share of the seen coordinate range, at its far end, whose straight-line trend is continued
+#: over the angles of the frame's edge zone (pixels whose values are copies, not measurements).
+TREND_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -97,8 +106,26 @@ class LobeFit:
         return out
 
 
-def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
-    """(table (LOBE_N, 3), baseline (3,), (t_lo, t_hi)) from samples t (n,) and s (n, 3)."""
+def _continue_trend(curve: np.ndarray, cells: int) -> np.ndarray:
+    """(cells, 3): ``curve`` (m, 3) continued ``cells`` cells past its end along the straight
+    line fitted to its last :data:`TREND_SHARE` (at least 5 cells), never above its last value
+    (no rise the camera did not see) nor below 0."""
+    k = min(curve.shape[0], max(5, round(TREND_SHARE * curve.shape[0])))
+    x = np.arange(k, dtype=np.float64)
+    slope, icept = np.polynomial.polynomial.polyfit(x, curve[-k:], 1)[::-1]
+    ahead = np.arange(k, k + cells, dtype=np.float64)[:, None]
+    return np.clip(slope * ahead + icept, 0.0, curve[-1])
+
+
+def _table(
+    t: np.ndarray, s: np.ndarray, t_end: float | None = None
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    """(table (LOBE_N, 3), baseline (3,), (t_lo, t_hi)) from samples t (n,) and s (n, 3).
+
+    ``t_end``: the farthest coordinate on the frame, edge zone included; where it lies past
+    the farthest sample, the curve is continued there (:func:`_continue_trend`) before the
+    baseline is read, so that the baseline is the level at the frame's farthest angles as a
+    camera that measured them would read it, not the level of nearer ones."""
     from scipy.ndimage import gaussian_filter1d  # scipy is imported by fits only: loading is faster
 
     n = LOBE_N
@@ -133,6 +160,12 @@ def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[
     grid = np.arange(lo, hi + 1)
     curve = np.stack([np.interp(grid, cells, med[:, c]) for c in range(3)], axis=1)
     curve = gaussian_filter1d(curve, 1.0, axis=0, mode="nearest")
+    seen = (lo / (n - 1), hi / (n - 1))
+    end = hi if t_end is None else min(n - 1, max(hi, int(np.floor(t_end * (n - 1)))))
+    if end > hi:
+        curve = np.concatenate([curve, _continue_trend(curve, end - hi)])
+        hi = end
+        grid = np.arange(lo, hi + 1)
     t_grid = grid / (n - 1)
     fits = np.array([_tail(t_grid, curve[:, c]) for c in range(3)])
     rate = fits[:, 1]
@@ -152,7 +185,7 @@ def _table(t: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[
     t_far = np.arange(hi + 1, n) / (n - 1)
     t_hi = hi / (n - 1)
     table[hi + 1 :] = lobe[-1] * np.exp(-rate[None, :] * (t_far[:, None] ** 2 - t_hi**2))
-    return table, base, (lo / (n - 1), hi / (n - 1))
+    return table, base, seen
 
 
 def _tail(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -220,16 +253,44 @@ def _phong_rms(rv: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _fit_param(
-    geometry: ScreenGeometry, name: str, step: int, ok: np.ndarray, y: np.ndarray, sub: np.ndarray
+    geometry: ScreenGeometry,
+    name: str,
+    step: int,
+    ok: np.ndarray,
+    y: np.ndarray,
+    sub: np.ndarray,
+    filled: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float], np.ndarray]:
     """The lobe tabulated over one parametrisation (``name``: "half" or "mirror") of the
-    camera's view: (table, baseline, angles seen, rms (3,) on the samples ``sub``)."""
+    camera's view: (table, baseline, angles seen, rms (3,) on the samples ``sub``); the
+    curve continued over the angles of the ``filled`` pixels (subsampled like ``ok``)."""
     t = lobe_position(geometry.refl, geometry.pos, geometry.camera, name == "half", np.float64)
-    t = t[::step, ::step][ok]
-    table, base, seen = _table(t, y)
+    t = t[::step, ::step]
+    t_end = None
+    if filled is not None and np.any(filled):
+        t_end = float(np.max(t[filled | ok]))
+    t = t[ok]
+    table, base, seen = _table(t, y, t_end)
     pred = base + lobe_lookup(table, t[sub])
     rms = np.sqrt(np.mean((pred - y[sub]) ** 2, axis=0))
     return table, base, seen, rms
+
+
+def _samples(
+    s: np.ndarray, valid: np.ndarray | None, filled: np.ndarray | None, step: int
+) -> tuple[np.ndarray, np.ndarray | None, int]:
+    """(ok, filled, masked) on the grid subsampled by ``step``: ``ok`` the pixels to sample
+    (finite, ``valid``, not ``filled``), ``filled`` subsampled, ``masked`` the count left out
+    as clipped or not finite."""
+    ok = np.all(np.isfinite(s), axis=-1)
+    if valid is not None:
+        ok &= valid
+    ok = ok[::step, ::step]
+    masked = int(ok.size - np.count_nonzero(ok))
+    if filled is not None:
+        filled = filled[::step, ::step]
+        ok = ok & ~filled
+    return ok, filled, masked
 
 
 def fit_lobe(
@@ -238,6 +299,7 @@ def fit_lobe(
     valid: np.ndarray | None = None,
     param: str | None = None,
     step: int = 1,
+    filled: np.ndarray | None = None,
 ) -> LobeFit:
     """Tabulate the lobe from the specular ratio the calibration camera saw.
 
@@ -249,6 +311,9 @@ def fit_lobe(
         param: ``"half"`` or ``"mirror"`` to force a parametrisation; None: the one with the
             smaller residual.
         step: subsampling of the pixels (1: all).
+        filled: (H, W) bool, pixels whose values are not measurements but copies (the
+            frame's edge zone, :mod:`viewcomp.calib.geo.edgezone`), default none: left out
+            of the samples, and the curve continued over their angles (the module docstring).
 
     Returns:
         the :class:`LobeFit`; a lobe below the noise is set to zero ("matte").
@@ -260,11 +325,7 @@ def fit_lobe(
         raise ValueError(f"s must be {(*geometry.pos.shape[:2], 3)}, got {s.shape}")
     if param is not None and param not in LOBE_PARAMS:
         raise ValueError(f"param must be one of {LOBE_PARAMS}, got {param!r}")
-    ok = np.all(np.isfinite(s), axis=-1)
-    if valid is not None:
-        ok &= valid
-    ok = ok[::step, ::step]
-    masked = int(ok.size - np.count_nonzero(ok))
+    ok, filled, masked = _samples(s, valid, filled, step)
     # float32 samples (what the captures hold); the table's medians pick among them and the
     # comparison fits below run in float64.
     y = s[::step, ::step][ok].astype(np.float32)
@@ -274,20 +335,19 @@ def fit_lobe(
             f"only {y.shape[0]} usable pixels to fit the specular lobe ({masked} clipped or "
             "not finite): capture with a lower exposure or with --hdr",
         )
-    cam = geometry.camera
     # Every residual is measured on the same samples: the pixels with R.V > 0 (where the
     # power law is defined), at most about 20000 of them.
-    rv = geometry.rv(cam)[::step, ::step][ok]
+    rv = geometry.rv(geometry.camera)[::step, ::step][ok]
     pos = np.flatnonzero(rv > 0)
     sub = pos[:: max(1, pos.size // 20000)] if pos.size >= 20 else np.arange(y.shape[0])
-    fits = {name: _fit_param(geometry, name, step, ok, y, sub) for name in LOBE_PARAMS}
+    fits = {name: _fit_param(geometry, name, step, ok, y, sub, filled) for name in LOBE_PARAMS}
     chosen = param or min(LOBE_PARAMS, key=lambda k: float(np.mean(fits[k][3])))
     other = next(k for k in LOBE_PARAMS if k != chosen)
     table, base, seen, rms = fits[chosen]
-    if pos.size >= 20:
-        rms_phong, rms_pl = _phong_rms(rv[sub], y[sub].astype(np.float64))
-    else:
-        rms_phong = rms_pl = np.full(3, np.nan)
+    nan = np.full(3, np.nan)
+    rms_phong, rms_pl = (
+        _phong_rms(rv[sub], y[sub].astype(np.float64)) if pos.size >= 20 else (nan, nan)
+    )
     peak = table.max(axis=0)
     # Matte: no cell of the lobe stands out of the samples' scatter about the fit.
     message = f"tabulated lobe ({chosen} angle), peak {np.array2string(peak, precision=3)}"
@@ -297,6 +357,8 @@ def fit_lobe(
         message = "no specular lobe above the noise: treated as matte"
     if masked:
         message += f"; {masked} pixels left out (clipped or not finite)"
+    if filled is not None and np.any(filled):
+        message += f"; continued over the edge zone's angles ({np.count_nonzero(filled)} pixels)"
     return LobeFit(
         param=chosen,
         table=table,

@@ -274,6 +274,7 @@ def calibrate_pixel(
     valid: np.ndarray | None = None,
     lobe_param: str | None = None,
     guide_px: int = 0,
+    filled: np.ndarray | None = None,
 ) -> PixelCalibration:
     """Build the per-pixel calibration from linearised captures on the projector grid.
 
@@ -287,6 +288,8 @@ def calibrate_pixel(
         guide_px: the colour mixing, and the gains' shares of their sum, also smoothed where
             the screen's colour is uniform, over windows of this radius (projector px; 0:
             not; :mod:`~.colourguide`).
+        filled: (H, W) bool, the pixels that hold copies, not measurements (the frame's
+            edge zone of a camera-space set): :func:`~viewcomp.calib.fit.lobe.fit_lobe`'s.
     """
     smooth_w = colour_smoother(white["gray"], guide_px) if guide_px else None
     wt_w = mixing_tilde(white, smooth_px, "white", smooth_w)
@@ -299,7 +302,7 @@ def calibrate_pixel(
     cm = screen_model(screen, f_lut, smooth_px, "screen", smooth=smooth_s)
     del smooth_s
     s = (screen["gray"] - cm.A) / np.maximum(white["gray"] - wm.A, 1e-6)
-    lobe = fit_lobe(s, geometry, valid, lobe_param)
+    lobe = fit_lobe(s, geometry, valid, lobe_param, filled=filled)
     share = np.zeros(3)
     if "black" in screen and "black" in white:
         ratio = cm.A / np.maximum(wm.A, 1e-6)

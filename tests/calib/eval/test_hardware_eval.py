@@ -150,6 +150,32 @@ def test_dslr_capture_on_glossy_magenta_matches_ideal_captures() -> None:
         assert row["emulated"][a]["compensated"] < row["emulated"][a]["original"]
 
 
+@pytest.mark.slow
+def test_a_coarse_webcam_reads_a_still_falling_lobe_past_its_edge_zone(materials_dir: Path) -> None:
+    """The emulated webcam (0.6 camera px per projector px) in HDR on measured satin_gold,
+    whose lobe is still falling at the frame's farthest angles: the frame's edge zone holds
+    copies of inner values there. Fitted as measurements they held the lobe's baseline at the
+    level of nearer angles (1.46 / 1.42 times the ideal captures' dE at 60 / 125 degrees at
+    this size, measured); left out and continued, 1.16 / 1.11."""
+    emu = open_emulator(
+        "webcam", materials_dir / "satin_gold.npz", seed=0, projector_size=(160, 80)
+    )
+    imgs = {"astronaut": natural_images(160, 80)["astronaut"]}
+    try:
+        with tempfile.TemporaryDirectory(prefix="viewcomp-test-") as tmp:
+            emulated_capture(emu, Path(tmp) / "caps", hdr=True)
+            cal = calibrate(read_capture_set(Path(tmp) / "caps"))
+        got = seen_errors(emu, cal, imgs, (60.0, 125.0))
+        ideal = seen_errors(emu, ideal_calibration(emu), imgs, (60.0, 125.0))
+    finally:
+        emu.close()
+    assert "edge zone" in cal.pixel.lobe.message
+    for a in ("60", "125"):
+        ratio = got[a]["compensated"] / ideal[a]["compensated"]
+        print(f"\nwebcam satin_gold HDR 160x80 at {a} deg: {ratio:.3f} of the ideal captures' dE")
+        assert ratio < 1.25
+
+
 def test_the_protocol_says_its_rows_and_the_time_left(monkeypatch) -> None:
     """A run of 48 rows takes an hour or more: after each row it says how many are done and
     about how long the rest takes."""

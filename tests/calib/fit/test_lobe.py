@@ -4,7 +4,8 @@ calib/fit/lobe.py), against closed forms."""
 import numpy as np
 import pytest
 
-from viewcomp.calib.fit.lobe import fit_lobe
+from viewcomp.calib.fit.lobe import _continue_trend, fit_lobe
+from viewcomp.calib.geo.edgezone import edge_zone, fill_edge_zone
 from viewcomp.calib.model.lobe import LOBE_N, lobe_lookup, lobe_position
 from viewcomp.calib.sim.simulator import simulation_rig
 from viewcomp.calib.world.geometry import ScreenGeometry
@@ -115,3 +116,65 @@ def test_fit_leaves_out_masked_pixels():
     assert masked.masked == np.count_nonzero(hot)
     far = slice(int(masked.t_seen[0] * (LOBE_N - 1)) + 5, None)
     np.testing.assert_allclose(masked.table[far], clean.table[far], atol=0.01)
+
+
+def _still_falling(g: ScreenGeometry) -> np.ndarray:
+    """A GGX lobe (roughness 0.2) in the half-vector angle on a coloured baseline: at the
+    frame's farthest angles it is still falling, as measured glossy materials are."""
+    _, nh = _cos_angles(g)
+    a2 = 0.2**2
+    ggx = a2 / (np.pi * (nh**2 * (a2 - 1) + 1) ** 2)
+    return np.array([0.5, 0.3, 0.2]) + 0.05 * ggx[..., None] * np.array([1.0, 0.8, 0.6])
+
+
+def test_the_edge_zone_is_left_out_and_the_curve_continued_over_its_angles():
+    """A camera coarser than the projector leaves the frame's outer lines as copies of inner
+    values (the edge zone). Fitted as measurements they hold the baseline at the level of
+    nearer angles; left out and continued, the baseline is near what a camera that measured
+    every pixel reads."""
+    g = _geometry()
+    s = _still_falling(g)
+    # 12 lines of the 640x320 grid: what a 0.6 camera px per projector px webcam leaves
+    # (5-6 lines measured at 320x160)
+    widths = dict.fromkeys(("top", "bottom", "left", "right"), 12)
+    zone = edge_zone(s.shape[:2], widths)
+    copied = s.copy()
+    fill_edge_zone([copied], widths)
+    full = fit_lobe(s, g, param="half")
+    as_measured = fit_lobe(copied, g, param="half")
+    continued = fit_lobe(copied, g, param="half", filled=zone)
+    err_measured = np.abs(as_measured.baseline - full.baseline)
+    err_continued = np.abs(continued.baseline - full.baseline)
+    assert np.all(err_measured > 0.005 * full.baseline), err_measured  # the bias is visible
+    assert np.all(err_continued < 0.25 * err_measured), (err_continued, err_measured)
+    assert "edge zone" in continued.message
+    # the table over the measured angles is the same curve either way
+    lo, hi = (round(v * (LOBE_N - 1)) for v in continued.t_seen)
+    np.testing.assert_allclose(
+        continued.table[lo:hi] + continued.baseline,
+        full.table[lo:hi] + full.baseline,
+        atol=0.01,
+    )
+
+
+def test_the_continued_curve_never_rises_nor_drops_below_what_flattened():
+    """Over the edge zone's angles the curve continues its trend but never rises (a lobe seen
+    rising at its far end is held), and a lobe that has flattened keeps its level."""
+    g = _geometry()
+    widths = dict.fromkeys(("top", "bottom", "left", "right"), 6)
+    zone = edge_zone(g.pos.shape[:2], widths)
+    rv, _ = _cos_angles(g)
+    flat = 0.5 + 0.4 * np.maximum(rv, 0)[..., None] ** 200 * np.ones(3)
+    full = fit_lobe(flat, g, param="mirror")
+    copied = flat.copy()
+    fill_edge_zone([copied], widths)
+    continued = fit_lobe(copied, g, param="mirror", filled=zone)
+    np.testing.assert_allclose(continued.baseline, full.baseline, atol=0.002)
+    x = np.linspace(0.0, 1.0, 200)
+    curves = np.stack([x, 1.0 - 0.99 * x, np.full_like(x, 0.5)], axis=1)
+    ahead = _continue_trend(curves, 10)
+    assert np.all(ahead[:, 0] == curves[-1, 0])  # rising: held
+    assert ahead.shape == (10, 3)
+    assert np.all((np.diff(ahead[:, 1]) < 0.0) | (ahead[1:, 1] == 0.0))  # falling ...
+    assert ahead[0, 1] < curves[-1, 1] and np.all(ahead[-5:, 1] == 0.0)  # ... never below 0
+    np.testing.assert_allclose(ahead[:, 2], 0.5)  # flat: flat
