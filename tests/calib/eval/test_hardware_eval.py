@@ -19,7 +19,7 @@ from viewcomp.calib.eval.hardware import (
     seen_errors,
 )
 from viewcomp.calib.eval.testimages import natural_images
-from viewcomp.calib.fit.calibrate import calibrate
+from viewcomp.calib.fit.calibrate import Calibration, calibrate
 from viewcomp.calib.io.captureset import read_capture_set
 
 
@@ -71,6 +71,28 @@ def test_the_ideal_mono_camera_sees_no_colour_mixing() -> None:
     assert colour["compensated"] * 1.5 < mono["compensated"] < mono["original"]
 
 
+def _small_case(
+    profile: str, screen: Path, hdr: bool, variants: dict[str, dict[str, Any]]
+) -> tuple[dict[str, dict], dict, dict[str, Calibration]]:
+    """``profile``'s emulated capture of ``screen`` at 160x80 (seed 0), calibrated once per
+    variant (name -> :func:`calibrate` keywords): (per variant the errors seen at 60 and 125
+    degrees on the astronaut, those of the ideal captures by a camera of the same kind, the
+    calibrations)."""
+    emu = open_emulator(profile, screen, seed=0, projector_size=(160, 80))
+    imgs = {"astronaut": natural_images(160, 80)["astronaut"]}
+    try:
+        with tempfile.TemporaryDirectory(prefix="viewcomp-test-") as tmp:
+            emulated_capture(emu, Path(tmp) / "caps", hdr=hdr)
+            cs = read_capture_set(Path(tmp) / "caps")
+            cals = {k: calibrate(cs, **kw) for k, kw in variants.items()}
+        seen = {k: seen_errors(emu, c, imgs, (60.0, 125.0)) for k, c in cals.items()}
+        mono = emu.camera.channels == 1
+        ideal = seen_errors(emu, ideal_calibration(emu, mono=mono), imgs, (60.0, 125.0))
+    finally:
+        emu.close()
+    return seen, ideal, cals
+
+
 @pytest.mark.slow
 def test_mono12_on_measured_spectralon_matches_an_ideal_mono_camera(materials_dir: Path) -> None:
     """A mono machine-vision camera's 8-bit-mode capture of a measured near-white material, in
@@ -79,22 +101,11 @@ def test_mono12_on_measured_spectralon_matches_an_ideal_mono_camera(materials_di
     compensation shows every bit of it). With the gains' shares smoothed by the colour guide
     (calibrate's default for camera-space sets) it is within WITHIN of the ideal mono camera
     at 60 and 125 degrees; without the guide it is not."""
-    emu = open_emulator(
-        "mono12", materials_dir / "spectralon.npz", seed=0, projector_size=(160, 80)
-    )
-    imgs = {"astronaut": natural_images(160, 80)["astronaut"]}
-    try:
-        with tempfile.TemporaryDirectory(prefix="viewcomp-test-") as tmp:
-            emulated_capture(emu, Path(tmp) / "caps", hdr=False)
-            cs = read_capture_set(Path(tmp) / "caps")
-            guided = seen_errors(emu, calibrate(cs), imgs, (60.0, 125.0))
-            plain = seen_errors(emu, calibrate(cs, guide_px=0), imgs, (60.0, 125.0))
-        ideal = seen_errors(emu, ideal_calibration(emu, mono=True), imgs, (60.0, 125.0))
-    finally:
-        emu.close()
+    variants = {"guided": {}, "plain": {"guide_px": 0}}
+    seen, ideal, _ = _small_case("mono12", materials_dir / "spectralon.npz", False, variants)
     for a in ("60", "125"):
         i = ideal[a]["compensated"]
-        g, p = guided[a]["compensated"] / i, plain[a]["compensated"] / i
+        g, p = seen["guided"][a]["compensated"] / i, seen["plain"][a]["compensated"] / i
         print(f"\nmono12 spectralon {a} deg: guided {g:.3f}, without {p:.3f} of ideal mono")
         # measured: 1.01 / 0.99 guided, 1.48 / 1.44 without (60 / 125 degrees)
         assert g <= WITHIN
@@ -157,21 +168,10 @@ def test_a_coarse_webcam_reads_a_still_falling_lobe_past_its_edge_zone(materials
     copies of inner values there. Fitted as measurements they held the lobe's baseline at the
     level of nearer angles (1.46 / 1.42 times the ideal captures' dE at 60 / 125 degrees at
     this size, measured); left out and continued, 1.16 / 1.11."""
-    emu = open_emulator(
-        "webcam", materials_dir / "satin_gold.npz", seed=0, projector_size=(160, 80)
-    )
-    imgs = {"astronaut": natural_images(160, 80)["astronaut"]}
-    try:
-        with tempfile.TemporaryDirectory(prefix="viewcomp-test-") as tmp:
-            emulated_capture(emu, Path(tmp) / "caps", hdr=True)
-            cal = calibrate(read_capture_set(Path(tmp) / "caps"))
-        got = seen_errors(emu, cal, imgs, (60.0, 125.0))
-        ideal = seen_errors(emu, ideal_calibration(emu), imgs, (60.0, 125.0))
-    finally:
-        emu.close()
-    assert "edge zone" in cal.pixel.lobe.message
+    seen, ideal, cals = _small_case("webcam", materials_dir / "satin_gold.npz", True, {"": {}})
+    assert "edge zone" in cals[""].pixel.lobe.message
     for a in ("60", "125"):
-        ratio = got[a]["compensated"] / ideal[a]["compensated"]
+        ratio = seen[""][a]["compensated"] / ideal[a]["compensated"]
         print(f"\nwebcam satin_gold HDR 160x80 at {a} deg: {ratio:.3f} of the ideal captures' dE")
         assert ratio < 1.25
 
