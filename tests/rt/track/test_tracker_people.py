@@ -187,10 +187,13 @@ def test_within_the_tolerances_in_95_percent_of_frames(measured, name):
     [
         pytest.param(
             "astronaut",
+            # Not strict: the dim face at 3.4 m sits at YuNet's threshold, and whether it is
+            # found depends on the host's floating point in OpenCV's DNN (the same code and
+            # packages: 2026-11-26's host missed it, 75 % within; an AMD EPYC host on
+            # 2026-11-27 finds all 12, 92 % within).
             marks=pytest.mark.xfail(
-                strict=True,
-                reason="dim: one face of 12 not found (3.4 m), 75 % within (measured "
-                "2026-11-26 on the branch as it was before issue 22's remaining work)",
+                strict=False,
+                reason="dim: one face of 12 not found (3.4 m) on some hosts, 75 % within",
             ),
         ),
         "hopper",
@@ -200,7 +203,8 @@ def test_within_the_tolerances_in_95_percent_of_frames(measured, name):
 def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
     """A guard below the issue's 95 % (which is the expected failure above): frontal and
     dim faces are all found, and at least 80 % within 10 cm in x and y and 10 % in distance
-    (measured: astronaut 100 % and 75 % (one dim face of 12 not found), hopper 83 % and 92 %,
+    (measured: astronaut 100 % and 75 % (one dim face of 12 not found; 92 % on hosts that
+    find it), hopper 83 % and 92 %,
     luispedro 92 % and 92 %; the misses are far and far aside, where 10 cm in x is 3 % of the
     distance)."""
     for cond in ("frontal", "dim"):
