@@ -112,7 +112,7 @@ def _continue_trend(curve: np.ndarray, cells: int) -> np.ndarray:
     (no rise the camera did not see) nor below 0."""
     k = min(curve.shape[0], max(5, round(TREND_SHARE * curve.shape[0])))
     x = np.arange(k, dtype=np.float64)
-    slope, icept = np.polynomial.polynomial.polyfit(x, curve[-k:], 1)[::-1]
+    icept, slope = np.polynomial.polynomial.polyfit(x, curve[-k:], 1)  # (3,) each
     ahead = np.arange(k, k + cells, dtype=np.float64)[:, None]
     return np.clip(slope * ahead + icept, 0.0, curve[-1])
 
