@@ -219,20 +219,17 @@ vec2 grey_range(vec3 v, vec3 c, float tiny, float limit) {
     return clamp(vec2(max(max(lo.x, lo.y), lo.z), min(min(hi.x, hi.y), hi.z)), -limit, limit);
 }
 
-// x pressed into [lo, hi] by the rational knee over the top and bottom kn of the range
-// (gamut.knee).
-float knee(float x, float lo, float hi, float kn, float tiny) {
-    float r = kn * max(hi - lo, tiny);
-    float up = max(x - (hi - r), 0.0);
-    float down = max((lo + r) - x, 0.0);
-    return x - up + up * r / (r + up) + down - down * r / (r + down);
-}
-
-// knee(x, lo, hi) where x >= lo + kn (hi - lo): only the top branch can act (the bottom's
-// term is exactly 0 there), e.g. the chroma's share knee(1, 0, t_max) with t_max <= 2.
+// The rational knee over the top r of a range ending at hi: x unchanged below hi - r,
+// tending to hi above it; e.g. the chroma's share knee_top(1, t_max, kn t_max).
 float knee_top(float x, float hi, float r) {
     float up = max(x - (hi - r), 0.0);
     return x - up + up * r / (r + up);
+}
+
+// x pressed into [lo, hi]: the knee over the top kn of the range, held at lo below it
+// (gamut.knee).
+float knee(float x, float lo, float hi, float kn, float tiny) {
+    return max(knee_top(x, hi, kn * max(hi - lo, tiny)), lo);
 }
 
 // The adaptive tone map's projector light (gamut.soft_light): the target g C_w + o asks for

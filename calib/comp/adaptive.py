@@ -70,7 +70,9 @@ class AdaptedPrediction:
 
     def __call__(self, field: ToneField) -> float:
         """Predicted adapted error plus the roughness price."""
-        seen = self.seen(field)
+        # what the eye sees saturates first (the camera's range: seen is clipped there
+        # before the eye adapts), then the best scale
+        seen = np.clip(self.seen(field), 0.0, 1.0)
         err = min(
             float(np.mean(delta_e94(linear_lab(np.clip(s * seen, 0.0, 1.0)), self.goal)))
             for s in SCALES

@@ -70,3 +70,46 @@ def test_a_cuts_first_stage_is_offered_early_and_replaced() -> None:
     assert len(got) == 1
     comp(thumbnail(imgs["astronaut"]), eye, 2 / 24, early=got.append)
     assert len(got) == 2
+
+
+@pytest.mark.parametrize("name", ["spectralon", "satin_gold"])
+def test_adaptive_keeps_what_a_bright_measured_screen_shows(materials_dir, name) -> None:
+    """On measured screens that show every colour asked of them (a white reflectance
+    standard, a bright satin gold), the adaptive map has nothing to trade and stays by the
+    global map's adapted error (measured at 64x32: within 0.26 dE). Its knee once lifted
+    every shadow that fitted and its prediction saw no loss in brightening an image the
+    camera then clipped: 7-12 dE against the global map's 0.6-1.7."""
+    from viewcomp.calib.eval.materials import material_world
+
+    mat = material_world(materials_dir / f"{name}.npz", "hdr", (64, 32))
+    assert mat.cal is not None, mat.refused
+    sim = mat.sim
+    eye = sim.rig.viewer.eye(90.0)
+    for image in natural_images(64, 32).values():
+        ideal = sim.observe(white_screen(), image, eye)
+        err = {}
+        for tone in ("global", "adaptive"):
+            out, _ = Compensation(mat.cal, "pixel", tone=tone).compensate_image(image, eye)
+            err[tone] = adapted_delta_e(sim.observe(mat.screen, out, eye), ideal).de
+        assert err["adaptive"] <= err["global"] + 0.5, err
+
+
+def test_prediction_sees_the_camera_clip_a_brightened_image() -> None:
+    """A bright screen (M = 3 I, A = 0: it can show three times the camera's range) and an
+    image reaching 0.9 of that range: doubled, it still fits the screen, but the camera
+    clips everything above half of it, which no later uniform scale brings back; the
+    prediction must see that (it once scaled before clipping, so a doubled image looked as
+    good as the image itself)."""
+    from viewcomp.calib.comp.adaptive import AdaptedPrediction
+    from viewcomp.calib.model.gamut import ToneField
+    from viewcomp.calib.model.reference import tone_terms
+
+    rng = np.random.default_rng(0)
+    cw = rng.uniform(0.02, 0.9, (8, 12, 3))
+    m = np.broadcast_to(3.0 * np.eye(3), (8, 12, 3, 3)).copy()
+    a = np.zeros((8, 12, 3))
+    pred = AdaptedPrediction(*tone_terms(np.linalg.inv(m), cw, a), m, a, cw)
+    same = pred(ToneField.uniform(1.0, 0.0, (3, 5)))
+    doubled = pred(ToneField.uniform(2.0, 0.0, (3, 5)))
+    assert same < 0.5
+    assert doubled > same + 3.0

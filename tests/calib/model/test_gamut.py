@@ -7,6 +7,7 @@ import pytest
 from skimage.color import rgb2lab
 
 from viewcomp.calib.model.gamut import (
+    KNEE,
     ToneField,
     field_at,
     grey_range,
@@ -37,13 +38,24 @@ def test_reach_of_a_diagonal_screen() -> None:
     assert r.grey_hi[0] == pytest.approx(0.27)
 
 
-def test_knee_leaves_the_middle_and_stays_inside() -> None:
-    x = np.linspace(-2.0, 3.0, 501).astype(np.float32)
-    y = knee(x, np.float32(0.0), np.float32(1.0))
-    mid = (x > 0.25) & (x < 0.75)
-    assert np.array_equal(y[mid], x[mid])
-    assert np.all((y > 0.0) & (y < 1.0))
+def test_knee_leaves_what_fits_below_its_top_and_stays_inside() -> None:
+    """Everything from lo to the top KNEE of the range passes unchanged (shadows that fit
+    are not lifted: in linear light a bottom knee lifted a third of the lightness scale);
+    above, the knee bends toward hi without reaching it; below lo, lo."""
+    lo, hi = np.float32(0.1), np.float32(2.1)
+    x = np.linspace(-2.0, 5.0, 701).astype(np.float32)
+    y = knee(x, lo, hi)
+    fits = (x >= lo) & (x <= hi - KNEE * (hi - lo))
+    assert fits.sum() > 150
+    assert np.array_equal(y[fits], x[fits])
+    assert np.all(y[x < lo] == lo)
+    start = hi - KNEE * (hi - lo)
+    top = x > start + 1e-3
+    assert np.all((y[top] < x[top]) & (y[top] < hi))
     assert np.all(np.diff(y) >= 0.0)
+    # continuous with slope 1 where the knee starts: a small step above it barely bends
+    eps = np.float32(1e-3)
+    assert knee(start + eps, lo, hi) == pytest.approx(start + eps, abs=2e-5)
 
 
 def _screen() -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,7 @@ from tests.support.calibrations import small_calibration
 from tests.support.synthetic import smooth_frame, synthetic_model
 from viewcomp.calib.comp.compensation import Compensation, thumbnail
 from viewcomp.calib.eval.testimages import natural_images
-from viewcomp.calib.model.gamut import LUMA, ToneField, grey_range
+from viewcomp.calib.model.gamut import KNEE, LUMA, ToneField, grey_range
 from viewcomp.calib.model.reference import compensate, screen_at, tone_terms, white_response
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.gl.compensator import Compensator
@@ -33,12 +33,12 @@ def random_field(seed: int, nodes: tuple[int, int] = (3, 5)) -> ToneField:
     """Nodes drawn independently (rows and columns unlike each other), so that a shader that
     read them transposed, mirrored or shifted by a node would not match."""
     rng = np.random.default_rng(seed)
-    return ToneField(rng.uniform(0.3, 1.6, nodes), rng.uniform(-0.06, 0.06, nodes))
+    return ToneField(rng.uniform(0.3, 2.0, nodes), rng.uniform(-0.06, 0.06, nodes))
 
 
 def knee_share(model, frame: np.ndarray, eye: np.ndarray, field: ToneField) -> float:
-    """The share of pixels whose target luminance lies outside the middle half of their
-    grey range (where the soft clip bends), computed here without gamut.soft_light."""
+    """The share of pixels whose target luminance lies below their grey range or in its top
+    KNEE (where the soft clip holds or bends), computed here without gamut.soft_light."""
     from viewcomp.calib.model.gamut import field_at
 
     cw = white_response(model, frame)
@@ -48,7 +48,7 @@ def knee_share(model, frame: np.ndarray, eye: np.ndarray, field: ToneField) -> f
     g, o = field_at(field, model.shape)
     lum = g * (cw @ LUMA) + o
     span = hi - lo
-    return float(np.mean((lum > hi - 0.25 * span) | (lum < lo + 0.25 * span)))
+    return float(np.mean((lum > hi - KNEE * span) | (lum < lo)))
 
 
 @pytest.fixture(scope="module")
