@@ -1,7 +1,10 @@
 """Following the audience with a camera (`viewcomp track`): OpenCV and numpy, no GL.
 
 - ``source``: frame sources: a camera device, a video file, an image sequence, memory.
-- ``yunet``: faces and their landmarks (YuNet, the model shipped in ``models/``, checksummed).
+- ``yunet``: faces and their landmarks (YuNet, the model shipped in ``models/``, checksummed);
+  tracked faces followed in crops.
+- ``live_faces``: YuNet for a live camera: a cheap search per frame, the full one on a worker.
+- ``boxes``: how much two face boxes overlap.
 - ``anatomy``: a viewer's eye from the landmarks: distance from the interpupillary distance,
   corrected for the head's turn.
 - ``faces``: the fallback detector (OpenCV's LBP cascade, as scikit-image ships it).
@@ -13,4 +16,5 @@
 - ``run``: the loop from frames to publishers, and its thread for ``play --track-camera``.
 - ``simscene``: photographs of people drawn as 2.5-D heads placed by their eyes (tests).
 - ``simwalk``: what the tracking camera sees of a face walking at known 3-D positions.
+- ``simtrack``: that walk tracked by the pipeline, beside its truth.
 """

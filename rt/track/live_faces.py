@@ -30,19 +30,6 @@ from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 SCALE = 0.5  # the per-frame search's resize factor
 
 
-def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Intersection over union (0..1) of ``box`` (4,) with each of ``boxes`` (N, 4), x y w h."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    ix = np.clip(
-        np.minimum(box[0] + box[2], b[:, 0] + b[:, 2]) - np.maximum(box[0], b[:, 0]), 0, None
-    )
-    iy = np.clip(
-        np.minimum(box[1] + box[3], b[:, 1] + b[:, 3]) - np.maximum(box[1], b[:, 1]), 0, None
-    )
-    inter = ix * iy
-    return inter / (box[2] * box[3] + b[:, 2] * b[:, 3] - inter)
-
-
 class LiveFaces:
     """The faces of each live frame (the module's description); ``detect`` as
     :meth:`YuNetDetector.detect`. Call :meth:`close` to end the worker thread."""
@@ -58,9 +45,10 @@ class LiveFaces:
         self._followed = np.zeros((0, 4))  # boxes of far faces followed in crops
         self.full_searches = 0
 
-    def detect(self, image: np.ndarray) -> Faces:
+    def detect(self, image: np.ndarray, follow: np.ndarray | None = None) -> Faces:
         """The faces in ``image`` ((h, w, 3) uint8 BGR or (h, w) grey), the near ones first,
-        then the followed far ones."""
+        then the followed far ones; ``follow`` (K, 4): boxes of faces tracked so far, followed
+        as the last frame's faces are."""
         if image.ndim == 2:  # grey: the crops are searched as colour frames are
             image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         faces = self.frame_detector.detect(image, self.scale)
@@ -71,28 +59,13 @@ class LiveFaces:
         if self._pending is None:
             self._pending = self._pool.submit(self.full_detector.detect, image)
             self.full_searches += 1
-        rows, kept = [], []
-        taken = faces.boxes
-        for box in self._followed:
-            if len(taken) and float(np.max(_iou(box, taken))) > 0.3:
-                continue  # found by this frame's search, or followed already
-            row = self.frame_detector.refine(image, box)
-            if row is None or np.linalg.norm(row[6:8] - row[4:6]) < self.config.min_eye_px:
-                continue  # lost (left, hidden): the tracker holds its eye
-            rows.append(row)
-            kept.append(row[:4])
-            taken = np.concatenate([taken, row[None, :4]])
+        if follow is not None:
+            self._followed = np.concatenate([self._followed, np.reshape(follow, (-1, 4))])
+        more = self.frame_detector.follow(image, self._followed, faces.boxes)
         # next frame, every face of this one is followed in a crop if its search misses it
         # (a viewer walking away beyond the half-resolution search's reach)
-        self._followed = np.concatenate([faces.boxes, np.asarray(kept).reshape(-1, 4)])
-        if not rows:
-            return faces
-        f = np.asarray(rows)
-        return Faces(
-            np.concatenate([faces.boxes, f[:, :4]]),
-            np.concatenate([faces.landmarks, f[:, 4:14].reshape(-1, 5, 2)]),
-            np.concatenate([faces.scores, f[:, 14]]),
-        )
+        self._followed = np.concatenate([faces.boxes, more[:, :4]])
+        return faces.extended(more)
 
     def close(self) -> None:
         """End the worker thread (after the search in progress)."""

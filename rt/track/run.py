@@ -21,6 +21,7 @@ import numpy as np
 
 from viewcomp.calib.world.rig import Device, Rig, tracking_camera
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH, head_pose
+from viewcomp.rt.track.boxes import iou
 from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
 from viewcomp.rt.track.live_faces import LiveFaces
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
@@ -156,8 +157,8 @@ class Pipeline:
         for tr in self.tracker.tracks:
             if tr.template is None or len(boxes) == 0:
                 continue
-            i = int(np.argmax(_overlap(tr.box, boxes)))
-            if _overlap(tr.box, boxes)[i] < 0.3:
+            i = int(np.argmax(iou(tr.box, boxes)))
+            if iou(tr.box, boxes)[i] < 0.3:
                 continue
             found = tr.template.measure(gray, boxes[i], self.options.scale)
             if found is not None:
@@ -199,7 +200,8 @@ class Pipeline:
         """YuNet: the eyes (N, 3) metres from the landmarks and the boxes (N, 4) pixels of
         the faces between ``near`` / 1.5 and 1.5 ``far`` from the camera."""
         assert self.yunet is not None
-        faces = self.yunet.detect(frame.image)
+        # the tracked faces are followed in crops where the frame's search misses them
+        faces = self.yunet.detect(frame.image, follow=self.tracker.hints())
         o = self.options
         pose = head_pose(self.device, faces.landmarks, o.ipd, o.nose_depth)
         ok = (pose.range >= o.near / 1.5) & (pose.range <= o.far * 1.5)
@@ -261,19 +263,6 @@ class Pipeline:
         self.source.close()
         for p in self.publishers:
             p.close()
-
-
-def _overlap(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Intersection over union (0..1) of ``box`` (4,) with each of ``boxes`` (N, 4)."""
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    ix = np.clip(
-        np.minimum(box[0] + box[2], b[:, 0] + b[:, 2]) - np.maximum(box[0], b[:, 0]), 0, None
-    )
-    iy = np.clip(
-        np.minimum(box[1] + box[3], b[:, 1] + b[:, 3]) - np.maximum(box[1], b[:, 1]), 0, None
-    )
-    inter = ix * iy
-    return inter / (box[2] * box[3] + b[:, 2] * b[:, 3] - inter)
 
 
 def build(

@@ -68,6 +68,38 @@ class Person:
         r = float((n - e.mean(axis=0)) @ d / (d @ d))
         return Person(name, image, e, n, cut, float(np.arctan2(r, nose_depth)))
 
+    def mirrored(self) -> Person:
+        """The photograph mirrored left to right: the same person turned the other way."""
+        w = self.image.shape[1]
+        flip = np.array([-1.0, 1.0])
+        shift = np.array([w - 1.0, 0.0])
+        eyes = shift + flip * self.eyes[::-1]  # the eye on the image's left first again
+        cx, cy, ax, ay = self.cut
+        return Person(
+            self.name,
+            np.ascontiguousarray(self.image[:, ::-1]),
+            eyes,
+            shift + flip * self.nose,
+            (w - 1.0 - cx, cy, ax, ay),
+            -self.yaw,
+        )
+
+
+#: A photograph of a head turned by more than this (radians) is drawn turned the other way
+#: from its mirror image: its relief carries the photographed face, nose and shading
+#: included, so turning it across frontal to the other side paints the nose on the wrong
+#: side of the head (YuNet then reads a head turned 45 degrees as nearly frontal).
+MIRROR_BEYOND = np.radians(20.0)
+
+
+def posed(person: Person, yaw: float) -> tuple[Person, float]:
+    """The photograph and the turn (radians, :func:`render_person`'s ``turn``) that draw
+    ``person`` with a total yaw of ``yaw`` radians: a photographed turn of more than
+    MIRROR_BEYOND toward the side opposite ``yaw`` is drawn from the mirror image."""
+    if abs(person.yaw) > MIRROR_BEYOND and person.yaw * yaw < 0:
+        person = person.mirrored()
+    return person, yaw - person.yaw
+
 
 def _relief(
     x: np.ndarray, y: np.ndarray, nose: np.ndarray, yaw0: float, ipd: float, depth: float

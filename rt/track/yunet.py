@@ -19,6 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from viewcomp.rt.track.boxes import iou
 from viewcomp.rt.track.faces import DetectorError
 
 log = logging.getLogger(__name__)
@@ -66,6 +67,16 @@ class Faces:
     @staticmethod
     def empty() -> Faces:
         return Faces(np.zeros((0, 4)), np.zeros((0, 5, 2)), np.zeros(0))
+
+    def extended(self, rows: np.ndarray) -> Faces:
+        """These faces followed by ``rows`` (M, 15): box, landmarks and score each."""
+        if len(rows) == 0:
+            return self
+        return Faces(
+            np.concatenate([self.boxes, rows[:, :4]]),
+            np.concatenate([self.landmarks, rows[:, 4:14].reshape(-1, 5, 2)]),
+            np.concatenate([self.scores, rows[:, 14]]),
+        )
 
 
 @dataclass
@@ -140,14 +151,45 @@ class YuNetDetector:
             return None  # another face
         return out
 
-    def detect(self, frame: np.ndarray, scale: float = 1.0) -> Faces:
+    def follow(self, frame: np.ndarray, boxes: np.ndarray, taken: np.ndarray) -> np.ndarray:
+        """(M, 15) box, landmarks and score of the faces of ``boxes`` (K, 4) (where faces were
+        seen before) that the frame's search missed, each looked for again in an enlarged
+        crop (:meth:`refine`); a box overlapping ``taken`` (the faces found already, (N, 4))
+        or another followed face by more than 0.3 IoU is skipped, a face the crop does not
+        find is left out. In a crop a far face is several times larger: a hand over the
+        mouth of a face 3 m away hides it from the whole-frame search, not from the crop."""
+        rows: list[np.ndarray] = []
+        taken = np.asarray(taken, np.float64).reshape(-1, 4)
+        for box in np.asarray(boxes, np.float64).reshape(-1, 4):
+            if len(taken) and float(np.max(iou(box, taken))) > 0.3:
+                continue
+            row = self.refine(frame, box)
+            if row is None or np.linalg.norm(row[6:8] - row[4:6]) < self.config.min_eye_px:
+                continue  # lost (left, hidden): the tracker holds its eye
+            rows.append(row)
+            taken = np.concatenate([taken, row[None, :4]])
+        return np.asarray(rows, np.float64).reshape(-1, 15)
+
+    def detect(
+        self, frame: np.ndarray, scale: float = 1.0, follow: np.ndarray | None = None
+    ) -> Faces:
         """The faces in ``frame`` ((h, w, 3) uint8 BGR, or (h, w) uint8 grey), in its pixels.
 
         ``scale`` < 1 searches the frame resized by that factor (about scale^2 of the time;
         at 0.5 a 1280x720, 90-degree webcam finds faces up to about 2 m, not at 2.5 m); the
-        faces found are refined in the full-resolution frame as small faces always are."""
+        faces found are refined in the full-resolution frame as small faces always are.
+        ``follow``: (K, 4) boxes of faces tracked so far; those the search misses are looked
+        for around where they were (:meth:`follow`) and come after the faces found."""
         if frame.ndim == 2:
             frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        faces = self._search(frame, scale)
+        if follow is None or len(follow) == 0:
+            return faces
+        more = self.follow(frame, follow, faces.boxes)
+        return faces.extended(more)
+
+    def _search(self, frame: np.ndarray, scale: float) -> Faces:
+        """The whole-frame search of :meth:`detect` (BGR ``frame``)."""
         small = frame
         if scale < 1.0:
             small = cv2.resize(frame, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)

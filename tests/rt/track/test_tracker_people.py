@@ -8,7 +8,10 @@ nose tip read off enlarged crops with a pixel grid, never by YuNet or the tracke
   ``grace_hopper.jpg``;
 - ``luispedro``: Luis Pedro Coelho, mahotas' demo data ``luispedro.jpg`` (mahotas, MIT), a
   head turned (43 degrees, from the hand-marked nose) and tilted in the photograph; the
-  head is turned back by that much, so "frontal" faces the camera for him too.
+  head is turned back by that much, so "frontal" faces the camera for him too, and turned
+  the other way it is drawn from the mirrored photograph (:func:`posed`: turned 68-88
+  degrees across, the photographed nose stayed on its side and YuNet read him nearly
+  frontal, distance ratio 1.16-1.52).
 
 Each is drawn as a 2.5-D head (:mod:`viewcomp.rt.track.simscene`) with a 63 mm
 interpupillary distance at a known 3-D eye midpoint in a simulated 1280x720 webcam (90 degrees
@@ -29,7 +32,7 @@ import pytest
 
 from viewcomp.rt.track.anatomy import head_pose
 from viewcomp.rt.track.run import Pipeline, TrackOptions
-from viewcomp.rt.track.simscene import Person, finish, render_person
+from viewcomp.rt.track.simscene import Person, finish, posed, render_person
 from viewcomp.rt.track.simwalk import background, walk_camera
 from viewcomp.rt.track.source import ArraySource
 from viewcomp.rt.track.tracker import TrackerConfig
@@ -96,14 +99,45 @@ def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.nd
             got = np.full_like(truth, np.nan)
             for i, e in enumerate(truth):
                 # the head's yaw toward the camera, either way; a photograph turned by
-                # itself (luispedro) is turned back by its own yaw first
-                turn = (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0) - person.yaw
-                f = render_person(back, dev, person, e, turn, gain=kw.get("gain", 1.0),
+                # itself (luispedro) is turned back by its own yaw first, or mirrored
+                who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
+                f = render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
                                   occluder=kw.get("occluder"))  # fmt: skip
                 faces = det.detect(finish(f, rng, kw.get("noise", 0.01)))
                 if len(faces):
                     got[i] = head_pose(dev, faces.landmarks[:1]).eyes[0]
             out[person.name, cond] = {"truth": truth, "got": got}
+    return out
+
+
+def measure_tracked(cond: str, n: int = 12, seed: int = 0) -> dict[str, dict[str, np.ndarray]]:
+    """Per person, the poses of :func:`measure` for ``cond`` seen by ``viewcomp track``'s
+    pipeline (YuNet, file mode) as a viewer it already tracks: each pose is the second frame
+    (0.1 s later) after the same pose with nothing over the face, with the condition's
+    turn and light in both (a hand raised over the mouth of a viewer already seen). The raw
+    eye of the second frame (NaN where none), as :func:`measure` gives them."""
+    dev = walk_camera()
+    back = background(dev.resolution, seed)
+    j = list(CONDITIONS).index(cond)
+    kw = CONDITIONS[cond]
+    out = {}
+    for k, person in enumerate(people()):
+        truth = poses(n, seed + 100 * k + j)
+        rng = np.random.default_rng((seed, k, j, 1))
+        got = np.full_like(truth, np.nan)
+        for i, e in enumerate(truth):
+            who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
+            frames = [
+                finish(render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
+                                     occluder=occ), rng, kw.get("noise", 0.01))
+                for occ in (None, kw.get("occluder"))
+            ]  # fmt: skip
+            pipeline = Pipeline(ArraySource(frames, 10.0), dev, TrackOptions())
+            raw = [pipeline.step(fr).raw for fr in pipeline.source][-1]
+            pipeline.close()
+            if len(raw):
+                got[i] = raw[0]
+        out[person.name] = {"truth": truth, "got": got}
     return out
 
 
@@ -134,8 +168,8 @@ NAMES = ("astronaut", "hopper", "luispedro")
 SHORT = {
     ("astronaut", "turned 45"): "1.151: YuNet's nose lags a 45-degree turn, yaw under-read",
     ("hopper", "turned 45"): "1.182: yaw under-read (a sixth of frames not found)",
-    ("luispedro", "turned 25"): "1.112: yaw under-read",
-    ("luispedro", "turned 45"): "1.177: yaw under-read",
+    ("luispedro", "turned 25"): "1.056: yaw under-read",
+    ("luispedro", "turned 45"): "1.162: yaw under-read",
     ("luispedro", "occluded"): "1.061: a quarter of frames not found, the rest spread",
 }
 
@@ -166,7 +200,7 @@ def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
             n,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="measured 68 % (astronaut), 60 % (hopper), 62 % (luispedro) of all "
+                reason="measured 68 % (astronaut), 60 % (hopper), 68 % (luispedro) of all "
                 "frames: turns of 25-45 degrees, occlusion (docs/INTERFACES.md)",
             ),
         )
@@ -210,6 +244,21 @@ def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
     for cond in ("frontal", "dim"):
         s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
         assert s["found"] == 1.0 and s["within"] >= 0.8, (cond, s)
+
+
+@pytest.mark.slow
+def test_a_tracked_face_is_followed_behind_a_hand(measured):
+    """A viewer already tracked who raises a hand over mouth and chin: the pipeline looks
+    for the face again in an enlarged crop where it was, which finds what the whole-frame
+    search misses (measured, the same poses, astronaut / hopper / luispedro: single frames
+    67 / 58 / 75 % found; tracked 100 %, 92 / 83 / 83 % within 10 cm in x and y and 10 % in
+    distance, median distance ratio 0.972 / 1.025 / 1.065)."""
+    tracked = measure_tracked("occluded")
+    for name in NAMES:
+        alone = scores(measured[name, "occluded"]["truth"], measured[name, "occluded"]["got"])
+        s = scores(tracked[name]["truth"], tracked[name]["got"])
+        assert alone["found"] < 0.9, alone  # the bias this is about: whole-frame misses
+        assert s["found"] == 1.0 and s["within"] >= 0.8, (name, s)
 
 
 def side_by_side(k: int, frames: int = 12) -> np.ndarray:
@@ -302,6 +351,11 @@ if __name__ == "__main__":  # the table of the report
         s = scores(v["truth"], v["got"])
         print(f"{name:10s} {cond:10s} found {s['found']:.2f} within {s['within']:.2f} "
               f"median ratio {s['median_ratio']:.3f}")  # fmt: skip
+    for cond in ("occluded", "turned 45"):
+        for name, v in measure_tracked(cond).items():
+            s = scores(v["truth"], v["got"])
+            print(f"{name:10s} {cond:10s} tracked: found {s['found']:.2f} within "
+                  f"{s['within']:.2f} median ratio {s['median_ratio']:.3f}")  # fmt: skip
     for k in (2, 3):
         truth = side_by_side(k)
         share = separate_share(truth, crowd(truth))
