@@ -1,8 +1,9 @@
-"""Face detection in the tracking camera's frames: OpenCV's LBP frontal-face cascade.
+"""The fallback face detector (``--detector cascade``): OpenCV's LBP frontal-face cascade.
 
-Which detector, and why: the installed OpenCV (opencv-contrib-python-headless 5.x) no longer
-ships the Haar cascades (``cv2.data`` holds no XML files), and ``cv2.FaceDetectorYN`` (YuNet)
-needs an ONNX model that no installed package carries. scikit-image ships OpenCV's LBP
+YuNet (:mod:`viewcomp.rt.track.yunet`, its model shipped in the package) is the detector;
+this one is kept for where it cannot run, and its distance comes from the box's size. Which
+cascade, and why: the installed OpenCV (opencv-contrib-python-headless 5.x) no longer ships
+the Haar cascades (``cv2.data`` holds no XML files); scikit-image ships OpenCV's LBP
 frontal-face cascade (``skimage.data.lbp_frontal_face_cascade_filename()``, trained by
 OpenCV on 24x24 windows); ``cv2.CascadeClassifier`` runs it once a misspelt tag of that
 copy (``featuhreParams``) is corrected, in memory. LBP cascades are integer features, about
