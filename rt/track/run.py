@@ -157,8 +157,9 @@ class Pipeline:
         for tr in self.tracker.tracks:
             if tr.template is None or len(boxes) == 0:
                 continue
-            i = int(np.argmax(iou(tr.box, boxes)))
-            if iou(tr.box, boxes)[i] < 0.3:
+            overlap = iou(tr.box, boxes)
+            i = int(np.argmax(overlap))
+            if overlap[i] < 0.3:
                 continue
             found = tr.template.measure(gray, boxes[i], self.options.scale)
             if found is not None:
