@@ -61,14 +61,15 @@
 #endif
 // The adaptive tone map (METHODs 7, 8): FIELD_NX x FIELD_NY nodes (u_field), FIELD_STEP their
 // spacing in pixels^-1, GAMUT_K and GAMUT_LIMIT its constants, GAMUT_LUMA the luminance
-// weights (viewcomp.calib.model.shader_inputs.gamut_constants, field_step).
+// weights (viewcomp.calib.model.shader_inputs.gamut_constants, field_step); the field's hue
+// weight comes per frame as v_frame[1].y.
 #ifndef FIELD_NX
 #define FIELD_NX 2
 #define FIELD_NY 2
 #define FIELD_STEP vec2(1.0)
 #endif
 #ifndef GAMUT_K
-#define GAMUT_K vec4(0.25, 1e-6, 64.0, 2.0)
+#define GAMUT_K vec3(0.1, 1e-6, 2.0)
 #define GAMUT_LIMIT 1000.0
 #define GAMUT_LUMA vec3(0.2126, 0.7152, 0.0722)
 #endif
@@ -221,7 +222,8 @@ void main() {
     vec3 cw = vec3(dot(m.w0.xyz, pw), dot(m.w1.xyz, pw), dot(m.w2.xyz, pw))
         + vec3(m.w0.w, m.w1.w, m.w2.w);
     vec3 y = soft_light(u, b, -d, dot(GAMUT_LUMA, cw), field_at(p),
-                        grey_range(b, -d, GAMUT_K.y, GAMUT_LIMIT), GAMUT_K, vec3(1.0));
+                        grey_range(b, -d, GAMUT_K.y, GAMUT_LIMIT), GAMUT_K, vec3(1.0),
+                        v_frame[1].y);
     vec3 result = lut_inverse_sq(pixel_t2(y, SQ_SCALE, SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 8
     // The adaptive tone map from the view cache: its terms are scaled to the LUT position
@@ -232,7 +234,7 @@ void main() {
     vec3 us = vec3(dot(g0.xyz, pw), dot(g1.xyz, pw), dot(g2.xyz, pw)) + vec3(g0.w, g1.w, g2.w);
     vec4 lr = texelFetch(u_luma, p.y * GRID_W + p.x);
     vec3 ys = soft_light(us, tb.xyz, SQ_OFF - td.xyz, dot(lr.xyz, pw) + lr.w, field_at(p),
-                         vec2(tb.w, td.w), GAMUT_K, SQ_SCALE);
+                         vec2(tb.w, td.w), GAMUT_K, SQ_SCALE, v_frame[1].y);
     vec3 result = lut_inverse_sq(clamp(ys - SQ_OFF, SQ_LO, SQ_HI));
 #elif METHOD == 2
     vec3 result = lut_inverse_sq(paper_t2(v_frame[0], v_frame[1], v_frame[2],

@@ -175,7 +175,7 @@ vec3 paper_t2(vec4 a0, vec4 a1, vec4 a2, vec3 pw, float top) {
 }
 
 // ---- The adaptive tone map (viewcomp.calib.model.gamut; docs/RUNTIME.md "Adaptive tone map").
-// Its constants come as gk = (KNEE, TINY, RATIO_MAX, SHARE_MAX) and limit = GREY_LIMIT
+// Its constants come as gk = (KNEE, TINY, SHARE_MAX) and limit = GREY_LIMIT
 // (viewcomp.calib.model.shader_inputs.gamut_constants).
 
 // The adaptive tone map's field at grid pixel p is bilinear between the nx x ny nodes, node 0
@@ -233,24 +233,28 @@ float knee(float x, float lo, float hi, float kn, float tiny) {
 }
 
 // The adaptive tone map's projector light (gamut.soft_light): the target g C_w + o asks for
-// g u + o v + c; its luminance (k . C_w = luma_cw) is pressed into the grey range by the
-// knee, chromaticity kept, then its chroma toward that grey by the knee on the share that
-// fits. go = (g, o) (field_blend), range = grey_range(v, c). top: the light's full scale per
-// channel, 1, or s when u, v, c come scaled by s (the view cache's terms, s = SQ_SCALE: the
-// share is a ratio, the same in either unit, and the result is s y, clamped to [0, s]).
-vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec4 gk, vec3 top) {
+// g u + o v + c; its luminance (k . C_w = luma_cw) is pressed under the grey range's top by
+// the knee, chromaticity kept, then its chroma toward that grey by the knee on the share that
+// fits; a target below the range (or where no grey fits) is clipped per channel. The result
+// is hue x that + (1 - hue) x the light asked for clipped per channel. go = (g, o)
+// (field_blend), range = grey_range(v, c). top: the light's full scale per channel, 1, or s
+// when u, v, c come scaled by s (the view cache's terms, s = SQ_SCALE: the share is a ratio,
+// the same in either unit, and the result is s y, clamped to [0, s]).
+vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec3 gk, vec3 top,
+                float hue) {
     float lum = go.x * luma_cw + go.y;
-    bool ok = range.x <= range.y;
+    bool ok = range.x <= range.y && lum >= range.x;
     float lum2 = ok ? knee(lum, range.x, range.y, gk.x, gk.y) : lum;
     bool lit = lum > gk.y;
-    float ratio = lit ? min(lum2 / lum, gk.z) : 0.0;
+    float ratio = lit ? lum2 / lum : 0.0;
     vec3 grey = lum2 * v + c;
     vec3 chroma = lit ? (ratio * go.x) * u + (ratio * go.y - lum2) * v : vec3(0.0);
     vec3 room = mix(-grey, top - grey, greaterThan(chroma, vec3(0.0)));
-    vec3 share = mix(vec3(gk.w), room / chroma, greaterThan(abs(chroma), gk.y * top));
-    float t_max = clamp(min(min(share.x, share.y), share.z), 0.0, gk.w);
+    vec3 share = mix(vec3(gk.z), room / chroma, greaterThan(abs(chroma), gk.y * top));
+    float t_max = clamp(min(min(share.x, share.y), share.z), 0.0, gk.z);
     float t = ok ? knee_top(1.0, t_max, gk.x * max(t_max, gk.y)) : 1.0;
-    return clamp(grey + t * chroma, vec3(0.0), top);
+    vec3 asked = clamp(go.x * u + go.y * v + c, vec3(0.0), top);
+    return mix(asked, clamp(grey + t * chroma, vec3(0.0), top), hue);
 }
 
 // Linear interpolation in the inverse LUT (reference.lut_inverse) at the squared position

@@ -7,7 +7,8 @@
 // Defines (literals, besides those of mpv_lut.glsl): VC_S_INIT, VC_O_INIT (vec4[6]: texel k =
 // VC_S[k] t + VC_O[k] for the texture's value t); VC_SQ_SCALE, VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI
 // (pixel_t2); VC_FIELD_NX, VC_FIELD_NY, VC_FIELD_STEP, VC_FIELD_INIT (the field's nodes
-// (gain, offset), row-major), VC_GAMUT_K, VC_GAMUT_LIMIT (soft_light's constants).
+// (gain, offset), row-major), VC_FIELD_HUE (its hue weight), VC_GAMUT_K, VC_GAMUT_LIMIT
+// (soft_light's constants).
 
 #include "mpv_lut.glsl"
 
@@ -30,7 +31,8 @@ vec4 hook() {
     ivec4 i = field_cell(ivec2(uv * VC_GRID), VC_FIELD_NX, VC_FIELD_NY, VC_FIELD_STEP, f);
     vec2 go = field_blend(VC_FIELD[i.x], VC_FIELD[i.y], VC_FIELD[i.z], VC_FIELD[i.w], f);
     vec3 y = soft_light(u, v, c, dot(lr.xyz, pw) + lr.w, go,
-                        grey_range(v, c, VC_GAMUT_K.y, VC_GAMUT_LIMIT), VC_GAMUT_K, vec3(1.0));
+                        grey_range(v, c, VC_GAMUT_K.y, VC_GAMUT_LIMIT), VC_GAMUT_K, vec3(1.0),
+                        VC_FIELD_HUE);
     vec3 t2 = pixel_t2(y, VC_SQ_SCALE, VC_SQ_OFF, VC_SQ_LO, VC_SQ_HI);
     return vec4(quantise(lut_inverse_sq(t2)), src.a);
 }

@@ -14,15 +14,19 @@ y = g u + o v + c.
   so they change only slowly across the screen: edges and local contrast pass through.
 - **Soft clip**: the target's luminance Y = k . T (k: Rec. 709, the camera's linear RGB taken
   as linear sRGB, as the evaluation does) is pressed under n_hi with a rational knee over
-  the top ``KNEE`` of the range and held at n_lo from below, and T scaled with it (T Y'/Y:
-  the same chromaticity). The knee acts on linear light, where the top tenth of a range is
-  a sliver of lightness (L* 96-100 of a white) and the bottom tenth is a third of it (L*
-  0-38): a knee there lifted every shadow that fitted (a bottom quarter: up to L* 57,
-  measured 11.5 adapted dE on spectralon against the global map's 0.86), so shadows below
-  n_lo are held at it and the field's offset lifts them where that pays. Then the chroma,
-  T' - Y' 1, is pressed toward the grey Y' 1 by the same knee on the share of it that fits
-  in [0, 1]^3: the hue stays, the saturation gives. What still falls out (no grey fits) is
-  clipped per channel as the global tone map does.
+  the top ``KNEE`` of the range, and T scaled with it (T Y'/Y: the same chromaticity). The
+  knee acts on linear light, where the top tenth of a range is a sliver of lightness (L*
+  96-100 of a white) and the bottom tenth is a third of it (L* 0-38): a knee there lifted
+  every shadow that fitted. Then the chroma, T' - Y' 1, is pressed toward the grey Y' 1 by
+  the same knee on the share of it that fits in [0, 1]^3: the hue stays, the saturation
+  gives. A target darker than n_lo, or where no grey fits, is clipped per channel as the
+  global tone map does: holding it at the grey n_lo lifted shadows and greyed dark colours
+  (spectralon, astronaut: 1.10 adapted dE against the per-channel clip's 0.86).
+- **Hue weight**: the light is ``hue`` x the soft clip + (1 - ``hue``) x the per-channel
+  clip of the light asked for, one weight per field (per shot). Where the screen shows
+  nearly every colour the per-channel clip loses less than pressing a colour toward a
+  grey that sits on the reach's edge (satin_gold: a warm highlight's blue light went from
+  0.43 to 0.97), and with ``hue`` 0 and a uniform field the map is the global rule exactly.
 """
 
 from __future__ import annotations
@@ -41,9 +45,6 @@ TINY = np.float32(1e-6)
 #: Greys beyond +-GREY_LIMIT (camera units, full scale 1) are never asked for: the bound of a
 #: range that no channel bounds.
 GREY_LIMIT = np.float32(1e3)
-#: The luminance's change T -> T Y'/Y is at most this factor (a near-black target on a
-#: screen that cannot show black).
-RATIO_MAX = np.float32(64.0)
 #: The chroma's share that fits is taken as at most this (beyond 1 / (1 - KNEE) the knee
 #: leaves the chroma whole).
 SHARE_MAX = np.float32(2.0)
@@ -52,15 +53,21 @@ SHARE_MAX = np.float32(2.0)
 @dataclass(frozen=True)
 class ToneField:
     """A smooth tone map: gain and offset at a (ny, nx) grid of nodes, the nodes at the
-    image's edges and evenly between (bilinear between them); offsets in camera units."""
+    image's edges and evenly between (bilinear between them); offsets in camera units.
+    ``hue`` in [0, 1]: the soft clip's share against the per-channel clip (module
+    docstring)."""
 
     gain: np.ndarray
     offset: np.ndarray
+    hue: float = 1.0
 
     @classmethod
-    def uniform(cls, alpha: float, beta: float, nodes: tuple[int, int]) -> ToneField:
-        """The global tone map (alpha, beta) as a field on ``nodes`` = (ny, nx)."""
-        return cls(np.full(nodes, alpha, np.float64), np.full(nodes, beta, np.float64))
+    def uniform(
+        cls, alpha: float, beta: float, nodes: tuple[int, int], hue: float = 1.0
+    ) -> ToneField:
+        """The global tone map (alpha, beta) as a field on ``nodes`` = (ny, nx); with
+        ``hue`` 0 it is the global tone map exactly."""
+        return cls(np.full(nodes, alpha, np.float64), np.full(nodes, beta, np.float64), hue)
 
     @property
     def nodes(self) -> tuple[int, int]:
@@ -68,9 +75,12 @@ class ToneField:
         return (int(self.gain.shape[0]), int(self.gain.shape[1]))
 
     def blend(self, other: ToneField, k: float) -> ToneField:
-        """self + k (other - self), node by node (the temporal smoothing)."""
+        """self + k (other - self), node by node and the hue weight (the temporal
+        smoothing)."""
         return ToneField(
-            self.gain + k * (other.gain - self.gain), self.offset + k * (other.offset - self.offset)
+            self.gain + k * (other.gain - self.gain),
+            self.offset + k * (other.offset - self.offset),
+            self.hue + k * (other.hue - self.hue),
         )
 
 
@@ -158,6 +168,7 @@ def soft_light(
     offset: np.ndarray,
     grey_lo: np.ndarray,
     grey_hi: np.ndarray,
+    hue: float = 1.0,
 ) -> np.ndarray:
     """The projector light of the adaptive tone map, clipped to [0, 1] (module docstring).
 
@@ -166,17 +177,19 @@ def soft_light(
         luma_cw: (...,) k . C_w, the white screen's luminance at each pixel.
         gain, offset: (...,) the field at each pixel (:func:`field_at`).
         grey_lo, grey_hi: (...,) :func:`grey_range` of (v, c).
+        hue: the field's hue weight in [0, 1].
 
     Returns:
         (..., 3) float32 light in [0, 1].
     """
     f32 = np.float32
     lum = (gain * luma_cw + offset).astype(f32)
-    ok = grey_lo <= grey_hi
+    # pressed where a grey of its luminance fits or lies below it; else clipped per channel
+    ok = (grey_lo <= grey_hi) & (lum >= grey_lo)
     lum2 = np.where(ok, knee(lum, grey_lo, np.where(ok, grey_hi, grey_lo)), lum)
-    # T' = T Y'/Y keeps the chromaticity; a target with no luminance becomes the grey Y'.
+    # T' = T Y'/Y keeps the chromaticity (Y' <= Y); a target with no luminance: the grey Y'.
     lit = lum > TINY
-    ratio = np.where(lit, np.minimum(lum2 / np.where(lit, lum, f32(1.0)), RATIO_MAX), 0.0)
+    ratio = np.where(lit, lum2 / np.where(lit, lum, f32(1.0)), 0.0)
     grey = (lum2[..., None] * v + c).astype(f32)
     chroma = ((ratio * gain)[..., None] * u + ((ratio * offset - lum2)[..., None]) * v).astype(f32)
     chroma = np.where(lit[..., None], chroma, f32(0.0))
@@ -186,4 +199,8 @@ def soft_light(
     share = np.where(np.abs(chroma) > TINY, room / np.where(chroma != 0, chroma, 1.0), SHARE_MAX)
     t_max = np.clip(np.min(share, axis=-1), 0.0, SHARE_MAX).astype(f32)
     t = np.where(ok, knee(np.ones_like(t_max), np.zeros_like(t_max), t_max), f32(1.0))
-    return np.clip(grey + t[..., None] * chroma, 0.0, 1.0).astype(f32)
+    soft = np.clip(grey + t[..., None] * chroma, 0.0, 1.0)
+    if hue >= 1.0:
+        return soft.astype(f32)
+    asked = np.clip(gain[..., None] * u + offset[..., None] * v + c, 0.0, 1.0)
+    return (asked * f32(1.0 - hue) + soft * f32(hue)).astype(f32)  # GLSL's mix

@@ -263,4 +263,4 @@ def adaptive_light(
     u, v, c = tone_terms(np.linalg.inv(m).astype(np.float32), cw, a)
     lo, hi = grey_range(v, c)
     g, o = field_at(field, model.shape)
-    return soft_light(u, v, c, (cw @ LUMA).astype(np.float32), g, o, lo, hi)
+    return soft_light(u, v, c, (cw @ LUMA).astype(np.float32), g, o, lo, hi, field.hue)

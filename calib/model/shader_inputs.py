@@ -25,7 +25,6 @@ from viewcomp.calib.model.gamut import (
     GREY_LIMIT,
     KNEE,
     LUMA,
-    RATIO_MAX,
     SHARE_MAX,
     TINY,
     ToneField,
@@ -176,11 +175,11 @@ def as_f32(a: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
 
 def gamut_constants() -> dict[str, np.ndarray]:
     """The adaptive tone map's constants as the shaders take them (compensate_core.glsl's
-    ``soft_light``): ``k`` = (KNEE, TINY, RATIO_MAX, SHARE_MAX) (4,), ``limit`` = GREY_LIMIT
+    ``soft_light``): ``k`` = (KNEE, TINY, SHARE_MAX) (3,), ``limit`` = GREY_LIMIT
     (1,), ``luma`` the luminance weights (3,); float32, the values of
     :mod:`~viewcomp.calib.model.gamut`."""
     return {
-        "k": np.array([KNEE, TINY, RATIO_MAX, SHARE_MAX], np.float32),
+        "k": np.array([KNEE, TINY, SHARE_MAX], np.float32),
         "limit": np.array([GREY_LIMIT], np.float32),
         "luma": LUMA.astype(np.float32),
     }
@@ -199,9 +198,12 @@ def field_nodes(field: ToneField) -> np.ndarray:
     compensate_core.glsl).
 
     Raises:
-        ValueError: a field of no nodes or with non-finite values.
+        ValueError: a field of no nodes, with non-finite values or a hue weight outside
+            [0, 1].
     """
     ny, nx = field.nodes
+    if not 0.0 <= float(field.hue) <= 1.0:  # also refuses NaN
+        raise ValueError(f"a tone field's hue weight must be in [0, 1], got {field.hue!r}")
     if ny < 1 or nx < 1 or np.shape(field.offset) != (ny, nx):
         raise ValueError(f"a tone field needs gain and offset of one (ny, nx) shape, got {ny}x{nx}")
     out = np.stack([np.ravel(field.gain), np.ravel(field.offset)], axis=1).astype(np.float32)

@@ -43,7 +43,8 @@ def adaptive_texels(model: RuntimeModel, eye: np.ndarray) -> np.ndarray:
 
 def adaptive_defines(field: ToneField, grid: tuple[int, int]) -> dict[str, str | int | float]:
     """``mpv_adaptive.glsl``'s ``#define`` values for ``field`` on a (W, H) ``grid``: the
-    nodes, their spacing and the soft clip's constants (those of the GL compensator)."""
+    nodes, their spacing, the hue weight and the soft clip's constants (those of the GL
+    compensator)."""
     ny, nx = field.nodes
     g = gamut_constants()
     nodes = [vec_literal(z) for z in field_nodes(field)]
@@ -52,6 +53,7 @@ def adaptive_defines(field: ToneField, grid: tuple[int, int]) -> dict[str, str |
         "VC_FIELD_NY": ny,
         "VC_FIELD_STEP": vec_literal(field_step((ny, nx), (grid[1], grid[0]))),
         "VC_FIELD_INIT": array_literal("vec2", nodes),
+        "VC_FIELD_HUE": literal(float(field.hue)),
         "VC_GAMUT_K": vec_literal(g["k"]),
         "VC_GAMUT_LIMIT": literal(float(g["limit"][0])),
     }

@@ -161,6 +161,7 @@ class ShaderPasses:
             out[0, :3] = self.eye
             out[0, 3] = self.alpha
             out[1, 0] = self.beta
+            out[1, 1] = self.field.hue if self.field is not None else 1.0
         elif self.method == "paper":
             out[:3] = paper_rows(
                 self._Ww,

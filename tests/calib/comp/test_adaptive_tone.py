@@ -75,10 +75,13 @@ def test_a_cuts_first_stage_is_offered_early_and_replaced() -> None:
 @pytest.mark.parametrize("name", ["spectralon", "satin_gold"])
 def test_adaptive_keeps_what_a_bright_measured_screen_shows(materials_dir, name) -> None:
     """On measured screens that show every colour asked of them (a white reflectance
-    standard, a bright satin gold), the adaptive map has nothing to trade and stays by the
-    global map's adapted error (measured at 64x32: within 0.26 dE). Its knee once lifted
-    every shadow that fitted and its prediction saw no loss in brightening an image the
-    camera then clipped: 7-12 dE against the global map's 0.6-1.7."""
+    standard, a bright satin gold), the adaptive map has nothing to trade: never 3 % worse
+    than the global map in adapted error (#24's bar; measured at 64x32: equal or better, by
+    up to 0.16 dE, the search keeping the global rule where it predicts less). Its knee
+    once lifted every shadow that fitted and its prediction saw no loss in brightening an
+    image the camera then clipped: 7-12 dE against the global map's 0.6-1.7; holding
+    shadows at the lowest grey and pressing colours toward a grey on the reach's edge cost
+    it 4-27 % more at 320x160."""
     from viewcomp.calib.eval.materials import material_world
 
     mat = material_world(materials_dir / f"{name}.npz", "hdr", (64, 32))
@@ -91,7 +94,7 @@ def test_adaptive_keeps_what_a_bright_measured_screen_shows(materials_dir, name)
         for tone in ("global", "adaptive"):
             out, _ = Compensation(mat.cal, "pixel", tone=tone).compensate_image(image, eye)
             err[tone] = adapted_delta_e(sim.observe(mat.screen, out, eye), ideal).de
-        assert err["adaptive"] <= err["global"] + 0.5, err
+        assert err["adaptive"] <= 1.03 * err["global"], err
 
 
 def test_prediction_sees_the_camera_clip_a_brightened_image() -> None:

@@ -82,6 +82,41 @@ def test_soft_clip_leaves_a_reachable_target_alone() -> None:
     assert np.allclose(y, u + c, atol=1e-6)
 
 
+def test_soft_clip_clips_a_target_below_the_grey_range_per_channel() -> None:
+    """A dark target below the lowest grey the screen can show is not lifted to that grey
+    (in linear light that lifted shadows by up to a third of the lightness scale): its light
+    is the per-channel clip of what it asks for, as the global tone map's."""
+    m, a = _screen()
+    rng = np.random.default_rng(1)
+    cw = rng.uniform(0.0, 0.004, (64, 3)).astype(np.float32)
+    u, v, c = _terms(m, a, cw)
+    lo, hi = grey_range(v, c)
+    luma = cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    assert np.all(luma < lo)
+    ones, zeros = np.ones(64, np.float32), np.zeros(64, np.float32)
+    y = soft_light(u, v, c, luma, ones, zeros, lo, hi)
+    assert np.allclose(y, np.clip(u + c, 0.0, 1.0), atol=1e-6)
+    assert np.all(y @ np.array([0.2126, 0.7152, 0.0722]) < lo)
+
+
+def test_hue_weight_is_a_mix_with_the_per_channel_clip() -> None:
+    """Weight 0 is the per-channel clip of the light asked for (the global tone map), 1 the
+    soft clip, between them the straight mix."""
+    m, a = _screen()
+    rng = np.random.default_rng(2)
+    cw = rng.uniform(0.0, 0.6, (64, 3)).astype(np.float32)
+    u, v, c = _terms(m, a, cw)
+    lo, hi = grey_range(v, c)
+    luma = cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    g, o = np.full(64, 1.3, np.float32), np.full(64, 0.01, np.float32)
+    asked = np.clip(1.3 * u + 0.01 * v + c, 0.0, 1.0)
+    soft = soft_light(u, v, c, luma, g, o, lo, hi)
+    assert np.abs(soft - asked).max() > 0.1
+    assert np.allclose(soft_light(u, v, c, luma, g, o, lo, hi, 0.0), asked, atol=1e-6)
+    mid = soft_light(u, v, c, luma, g, o, lo, hi, 0.25)
+    assert np.allclose(mid, 0.75 * asked + 0.25 * soft, atol=1e-6)
+
+
 def test_soft_clip_keeps_hue_better_than_clipping() -> None:
     """A saturated cyan far beyond what the reddish screen can show: per-channel clipping
     turns its hue; the soft clip gives saturation instead."""

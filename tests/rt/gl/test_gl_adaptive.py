@@ -110,6 +110,30 @@ def test_adaptive_on_a_real_calibration(gl_ctx, angle: float) -> None:
             assert_close(gl.render(frame), ref)
 
 
+@pytest.mark.parametrize("cached", [False, True], ids=["solve", "cached"])
+def test_hue_weight_mixes_the_soft_clip_with_the_per_channel_clip(gl_ctx, model, cached) -> None:
+    """A field's hue weight between 0 and 1 draws as the reference does, and a uniform field
+    of weight 0 is the global tone map (alpha, beta) exactly: the reference's global map
+    (reference.compensate without a field) is the check, not the adaptive code."""
+    frame = smooth_frame(W, H, seed=9)
+    eye = eye_from_angle(75, 0.5, 0.035)
+    field = random_field(11)
+    mixed = ToneField(field.gain, field.offset, 0.35)
+    glob = ToneField.uniform(0.8, 0.02, (3, 5), hue=0.0)
+    with Compensator(model, gl_ctx, view_cache=cached, view_hold=0, view_steps=1) as comp:
+        comp.set_eye(*eye)
+        comp.set_field(mixed)
+        ref = compensate(model, frame, eye, 1.0, 0.0, field=mixed)
+        assert_close(comp.render(frame), ref)
+        # the weight matters here: the same nodes at weight 1 differ
+        whole = compensate(model, frame, eye, 1.0, 0.0, field=field)
+        assert np.abs(whole.astype(int) - ref).max() > 8
+        comp.set_field(glob)
+        ref0 = compensate(model, frame, eye, 1.0, 0.0, field=glob)
+        assert np.array_equal(ref0, compensate(model, frame, eye, 0.8, 0.02))
+        assert_close(comp.render(frame), ref0)
+
+
 def test_field_checks(gl_ctx) -> None:
     paper = synthetic_model("paper", 16, 8, seed=1)
     with Compensator(paper, gl_ctx) as comp, pytest.raises(ValueError, match="pixel method"):
@@ -118,3 +142,6 @@ def test_field_checks(gl_ctx) -> None:
         bad = ToneField(np.full((3, 5), np.nan), np.zeros((3, 5)))
         with pytest.raises(ValueError, match="NaN"):
             comp.set_field(bad)
+        for hue in (-0.1, 1.5, float("nan")):
+            with pytest.raises(ValueError, match="hue weight"):
+                comp.set_field(ToneField.uniform(1.0, 0.0, (3, 5), hue))

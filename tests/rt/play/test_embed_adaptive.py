@@ -29,7 +29,9 @@ def test_live_renderer_draws_the_reference_of_its_field(gl_ctx: Any, async_tone:
 
     cal = small_calibration(GW, GH, screen="red")
     imgs = natural_images(GW, GH)
-    frames = [imgs["coffee"]] * 3 + [imgs["astronaut"]] * 3  # a cut after the third
+    # a cut after the third, to a dim shot: on this screen the search dims the bright coffee
+    # to a quarter and leaves the half-bright astronaut at gain 1
+    frames = [imgs["coffee"]] * 3 + [imgs["astronaut"] // 2] * 3
     fbo = gl_ctx.simple_framebuffer((GW, GH))
     fields = []
     try:
