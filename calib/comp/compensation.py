@@ -267,6 +267,7 @@ class Compensation:
         t: float | None = None,
         cut: bool | None = None,
         early: Callable[[FrameParams], None] | None = None,
+        stop: Callable[[], bool] | None = None,
     ) -> FrameParams:
         """Parameters for a frame from its thumbnail (h, w, 3) uint8, the eye (3,) metres or
         an :class:`Audience` (pixel method), the time (s). ``cut``: whether a new shot began
@@ -275,7 +276,10 @@ class Compensation:
         thumbnails given (a caller that gives every frame). ``early``: at a cut in video with
         the adaptive field, called with the new shot's first-stage parameters (the best
         uniform field) before its node search ends, for a caller on another thread to show
-        meanwhile (the tone worker); the returned parameters replace them."""
+        meanwhile (the tone worker); the returned parameters replace them. ``stop``: asked
+        during the adaptive field's node search; True gives the call up
+        (:class:`~viewcomp.calib.comp.adaptive.SearchStopped`, the field's state as before
+        the call: the tone worker's newer request, a cut, goes first)."""
         eye = as_view(eye)
         if isinstance(eye, Audience) and self.method != "pixel":
             raise ValueError("an audience of several viewers needs the pixel method")
@@ -316,7 +320,7 @@ class Compensation:
                 if early is not None:
                     early(FrameParams(m, alpha, beta, tone, gains, f))
 
-            field = self._field(model, thumb, eye, tone, t, cut, first)
+            field = self._field(model, thumb, eye, tone, t, cut, first, stop)
             return FrameParams(model, alpha, beta, tone, gains, field)
         if self.smoother is not None and t is not None:
             alpha, beta = self.smoother.update(t, alpha, beta)
@@ -331,6 +335,7 @@ class Compensation:
         t: float | None,
         cut: bool | None = None,
         early: Callable[[ToneField], None] | None = None,
+        stop: Callable[[], bool] | None = None,
     ) -> ToneField:
         """The adaptive field for a frame: a whole search for a still and at a cut, a local
         one from the last frame's within a shot; smoothed over a shot's frames."""
@@ -342,7 +347,9 @@ class Compensation:
             return choose_field(pred, (tone.alpha, tone.beta))
         cut = self.fields.is_cut(thumb) if cut is None else cut
         last = None if cut else self.fields.raw
-        field = choose_field(pred, (tone.alpha, tone.beta), last, early=early if cut else None)
+        field = choose_field(
+            pred, (tone.alpha, tone.beta), last, early=early if cut else None, stop=stop
+        )
         return self.fields.update(t, field, cut)
 
     def compensate_image(

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 
 import numpy as np
 
+from viewcomp.calib.comp.adaptive import SearchStopped
 from viewcomp.calib.comp.compensation import Compensation, FrameParams
 from viewcomp.calib.model.reference import View
 from viewcomp.calib.world.audience import Audience
@@ -27,9 +29,11 @@ class ToneWorker:
     until max(period, 2 c) has passed since the call began, unless a cut is asked for: a
     request that starts a new shot (``cut=True``, detected by the caller on every frame) ends
     the rest at once and stays a cut when a later request of the same shot replaces it, so
-    the new shot's own tone map comes after one call, not after a rest and a guess. At a cut
-    the adaptive field's first stage (``Compensation``'s ``early``) becomes the latest result
-    as soon as it is known, so frames leave the old shot's field before the search ends.
+    the new shot's own tone map comes after one call, not after a rest and a guess. A call
+    in progress gives its adaptive field's node search up when a cut is asked for
+    (``Compensation``'s ``stop``): the old shot's field is of no more use. At a cut the
+    adaptive field's first stage (``Compensation``'s ``early``) becomes the latest result as
+    soon as it is known, so frames leave the old shot's field before the search ends.
     """
 
     def __init__(self, comp: Compensation, period: float = 0.1) -> None:
@@ -46,10 +50,15 @@ class ToneWorker:
         self._thread.start()
 
     def compute(
-        self, thumb: np.ndarray, eye: View, t: float, cut: bool | None = None
+        self,
+        thumb: np.ndarray,
+        eye: View,
+        t: float,
+        cut: bool | None = None,
+        stop: Callable[[], bool] | None = None,
     ) -> FrameParams:
-        """One synchronous call (``cut`` as ``Compensation``'s); also becomes the latest
-        result."""
+        """One synchronous call (``cut`` and ``stop`` as ``Compensation``'s); also becomes
+        the latest result."""
         start = time.perf_counter()
         seen = copy_view(eye)
 
@@ -57,10 +66,12 @@ class ToneWorker:
             self._result = (q, seen)
 
         with self._lock:
-            p = self.comp(thumb, eye, t, cut, first)
+            try:
+                p = self.comp(thumb, eye, t, cut, first, stop)
+            finally:
+                self.busy_seconds += time.perf_counter() - start
             self._result = (p, copy_view(eye))
             self.calls += 1
-            self.busy_seconds += time.perf_counter() - start
         return p
 
     def submit(self, thumb: np.ndarray, eye: View, t: float, cut: bool | None = None) -> None:
@@ -89,7 +100,9 @@ class ToneWorker:
                 continue
             start = time.perf_counter()
             try:
-                self.compute(*req)
+                self.compute(*req, stop=self._cut_waiting)
+            except SearchStopped:  # a cut came: it is the next request, no rest
+                continue
             except Exception:  # keep the last good parameters; the frame goes on
                 import logging
 

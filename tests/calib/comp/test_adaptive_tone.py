@@ -72,6 +72,32 @@ def test_a_cuts_first_stage_is_offered_early_and_replaced() -> None:
     assert len(got) == 2
 
 
+def test_a_stopped_search_leaves_the_shot_as_it_was() -> None:
+    """``stop`` gives a node search up (SearchStopped) before the field's state changes;
+    the next call within the shot searches from the last field as before."""
+    from viewcomp.calib.comp.adaptive import SearchStopped
+    from viewcomp.calib.comp.compensation import thumbnail
+
+    cal = small_calibration(screen="red")
+    comp = Compensation(cal, "pixel", tau=0.5, tone="adaptive")
+    imgs = natural_images(64, 32)
+    eye = small_simulator().rig.viewer.eye(60.0)
+    first = comp(thumbnail(imgs["coffee"]), eye, 0.0, cut=True).field
+    asked = []
+
+    def stop() -> bool:
+        asked.append(1)
+        return len(asked) > 3  # a cut arrives during the fourth node
+
+    with pytest.raises(SearchStopped):
+        comp(thumbnail(imgs["coffee"]), eye, 1 / 24, cut=False, stop=stop)
+    assert len(asked) == 4 and comp.fields.raw is first and comp.fields.state is first
+    again = comp(thumbnail(imgs["coffee"]), eye, 2 / 24, cut=False, stop=lambda: False).field
+    assert again is not None and comp.fields.raw is not first
+    with pytest.raises(SearchStopped):  # a whole search too: its node search asks
+        comp(thumbnail(imgs["astronaut"]), eye, 3 / 24, cut=True, stop=lambda: True)
+
+
 @pytest.mark.parametrize("name", ["spectralon", "satin_gold"])
 def test_adaptive_keeps_what_a_bright_measured_screen_shows(materials_dir, name) -> None:
     """On measured screens that show every colour asked of them (a white reflectance

@@ -1,4 +1,5 @@
-"""The tone worker: the newest request wins, its duty cycle rests, and a cut ends the rest."""
+"""The tone worker: the newest request wins, its duty cycle rests, a cut ends the rest and
+stops a call in progress."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from viewcomp.calib.comp.adaptive import SearchStopped
 from viewcomp.calib.comp.compensation import Compensation
 from viewcomp.rt.play.tone_worker import ToneWorker
 
@@ -23,14 +25,24 @@ class _Comp:
         self.hold = threading.Event()
         self.hold.set()
         self.entered = threading.Event()
+        self.stopped: list[float] = []
 
     def __call__(
-        self, thumb: np.ndarray, eye: Any, t: float, cut: bool | None = None, early: Any = None
+        self,
+        thumb: np.ndarray,
+        eye: Any,
+        t: float,
+        cut: bool | None = None,
+        early: Any = None,
+        stop: Any = None,
     ) -> Any:
         if cut and early is not None:
             early(("first stage", t))
         self.entered.set()
         self.hold.wait(10.0)
+        if stop is not None and stop():  # as the node search does between nodes
+            self.stopped.append(t)
+            raise SearchStopped
         self.calls.append((t, cut))
         return ("params", t)
 
@@ -76,8 +88,27 @@ def test_a_cut_survives_a_later_request_of_the_same_shot() -> None:
         worker.submit(thumb, EYE, 2.0, True)  # the cut's frame
         worker.submit(thumb, EYE, 3.0, False)  # the next frame replaces it, still a cut
         comp.hold.set()
+        # the call in progress was of the old shot: given up for the cut, computed next
+        assert _wait(lambda: len(comp.calls) == 1)
+        assert comp.stopped == [1.0] and comp.calls == [(3.0, True)]
+    finally:
+        worker.stop()
+
+
+def test_a_call_within_a_shot_finishes_without_a_cut() -> None:
+    comp = _Comp()
+    worker = _worker(comp, period=0.01)
+    thumb = np.zeros((4, 8, 3), np.uint8)
+    try:
+        comp.hold.clear()
+        worker.submit(thumb, EYE, 1.0, False)
+        assert comp.entered.wait(5.0)
+        worker.submit(thumb, EYE, 2.0, False)  # the same shot: the call goes on
+        comp.hold.set()
         assert _wait(lambda: len(comp.calls) == 2)
-        assert comp.calls == [(1.0, False), (3.0, True)]
+        assert comp.stopped == [] and comp.calls == [(1.0, False), (2.0, False)]
+        latest = worker.latest()
+        assert latest is not None and latest[0] == ("params", 2.0)
     finally:
         worker.stop()
 
