@@ -3,12 +3,12 @@ JSON object.
 
 Two Compensators on the same synthetic pixel-method model at ``--size``: one draws the
 global tone map (alpha, beta), the other the adaptive one (a 3 x 5 field of gain and offset,
-the hue-keeping soft clip); their draws alternate within rounds (so that the machine's drift
-hits both alike), for the pixel method solved per draw and from the view cache, RGB and
-yuv420p input. Per variant: the median draw time (wall ms) of each over the rounds and the
-median, min and max of the per-round ratio adaptive / global::
+the hue-keeping soft clip, ``--hue`` its hue weight); their draws alternate within rounds
+(so that the machine's drift hits both alike), for the pixel method solved per draw and
+from the view cache, RGB and yuv420p input. Per variant: the median draw time (wall ms) of
+each over the rounds and the median, min and max of the per-round ratio adaptive / global::
 
-    .venv/bin/python bench/bench_tone_shader.py --size 1920x1080 > tone-shader.json
+    .venv/bin/python bench/bench_tone_shader.py --size 1920x1080 [--hue 1] > tone-shader.json
 """
 
 from __future__ import annotations
@@ -68,19 +68,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--rounds", type=int, default=11)
     ap.add_argument("--draws", type=int, default=7, help="draws per shader and round")
+    ap.add_argument(
+        "--hue",
+        type=float,
+        default=1.0,
+        help="the field's hue weight (1: the soft clip alone, 0: the per-channel clip alone, "
+        "between: both, mixed)",
+    )
     args = ap.parse_args(argv)
     w, h = (int(x) for x in args.size.split("x"))
     ctx = create_context()
     report: dict[str, Any] = {
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "renderer": ctx.info["GL_RENDERER"], "size": args.size,
-        "rounds": args.rounds, "draws": args.draws,
+        "rounds": args.rounds, "draws": args.draws, "hue": args.hue,
         "load_avg_start": [round(x, 2) for x in os.getloadavg()],
     }  # fmt: skip
     frame = smooth_frame(w, h, seed=2)
     planes = rgb_to_yuv420p(frame, "bt709")
     rng = np.random.default_rng(0)
-    field = ToneField(rng.uniform(0.4, 1.2, NODES), rng.uniform(-0.03, 0.03, NODES))
+    field = ToneField(rng.uniform(0.4, 1.2, NODES), rng.uniform(-0.03, 0.03, NODES), args.hue)
     model = synthetic_model("pixel", w, h)
     for name, cached in (("solve", False), ("cached", True)):
         comps = {}

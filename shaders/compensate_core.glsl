@@ -242,6 +242,8 @@ float knee(float x, float lo, float hi, float kn, float tiny) {
 // the same in either unit, and the result is s y, clamped to [0, s]).
 vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec3 gk, vec3 top,
                 float hue) {
+    vec3 asked = clamp(go.x * u + go.y * v + c, vec3(0.0), top);
+    if (hue <= 0.0) return asked;  // the per-channel clip alone (hue: one per draw)
     float lum = go.x * luma_cw + go.y;
     bool ok = range.x <= range.y && lum >= range.x;
     float lum2 = ok ? knee(lum, range.x, range.y, gk.x, gk.y) : lum;
@@ -253,8 +255,8 @@ vec3 soft_light(vec3 u, vec3 v, vec3 c, float luma_cw, vec2 go, vec2 range, vec3
     vec3 share = mix(vec3(gk.z), room / chroma, greaterThan(abs(chroma), gk.y * top));
     float t_max = clamp(min(min(share.x, share.y), share.z), 0.0, gk.z);
     float t = ok ? knee_top(1.0, t_max, gk.x * max(t_max, gk.y)) : 1.0;
-    vec3 asked = clamp(go.x * u + go.y * v + c, vec3(0.0), top);
-    return mix(asked, clamp(grey + t * chroma, vec3(0.0), top), hue);
+    vec3 soft = clamp(grey + t * chroma, vec3(0.0), top);
+    return hue >= 1.0 ? soft : mix(asked, soft, hue);
 }
 
 // Linear interpolation in the inverse LUT (reference.lut_inverse) at the squared position

@@ -183,6 +183,8 @@ def soft_light(
         (..., 3) float32 light in [0, 1].
     """
     f32 = np.float32
+    if hue <= 0.0:  # the per-channel clip alone
+        return _asked(u, v, c, gain, offset)
     lum = (gain * luma_cw + offset).astype(f32)
     # pressed where a grey of its luminance fits or lies below it; else clipped per channel
     ok = (grey_lo <= grey_hi) & (lum >= grey_lo)
@@ -202,5 +204,11 @@ def soft_light(
     soft = np.clip(grey + t[..., None] * chroma, 0.0, 1.0)
     if hue >= 1.0:
         return soft.astype(f32)
-    asked = np.clip(gain[..., None] * u + offset[..., None] * v + c, 0.0, 1.0)
-    return (asked * f32(1.0 - hue) + soft * f32(hue)).astype(f32)  # GLSL's mix
+    return (_asked(u, v, c, gain, offset) * f32(1.0 - hue) + soft * f32(hue)).astype(f32)
+
+
+def _asked(
+    u: np.ndarray, v: np.ndarray, c: np.ndarray, gain: np.ndarray, offset: np.ndarray
+) -> np.ndarray:
+    """The light the field asks for, clipped per channel to [0, 1] (float32)."""
+    return np.clip(gain[..., None] * u + offset[..., None] * v + c, 0.0, 1.0).astype(np.float32)
