@@ -64,20 +64,20 @@ def _screen() -> tuple[np.ndarray, np.ndarray]:
     return m, np.array([0.005, 0.005, 0.005], np.float32)
 
 
-def _terms(m: np.ndarray, a: np.ndarray, cw: np.ndarray):
+def _terms(cw: np.ndarray):
+    """u, v, c, the grey range and k . C_w of the targets C_w (n, 3) on :func:`_screen`."""
+    m, a = _screen()
     m_inv = np.linalg.inv(m.astype(np.float64)).astype(np.float32)
     u = (cw @ m_inv.T).astype(np.float32)
     v = np.broadcast_to(m_inv.sum(axis=-1), u.shape).astype(np.float32)
     c = np.broadcast_to(-(m_inv @ a), u.shape).astype(np.float32)
-    return u, v, c
+    lo, hi = grey_range(v, c)
+    return u, v, c, lo, hi, cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def test_soft_clip_leaves_a_reachable_target_alone() -> None:
-    m, a = _screen()
     cw = np.array([[0.1, 0.08, 0.06]], np.float32)
-    u, v, c = _terms(m, a, cw)
-    lo, hi = grey_range(v, c)
-    luma = cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    u, v, c, lo, hi, luma = _terms(cw)
     y = soft_light(u, v, c, luma, np.float32([1.0]), np.float32([0.0]), lo, hi)
     assert np.allclose(y, u + c, atol=1e-6)
 
@@ -86,12 +86,9 @@ def test_soft_clip_clips_a_target_below_the_grey_range_per_channel() -> None:
     """A dark target below the lowest grey the screen can show is not lifted to that grey
     (in linear light that lifted shadows by up to a third of the lightness scale): its light
     is the per-channel clip of what it asks for, as the global tone map's."""
-    m, a = _screen()
     rng = np.random.default_rng(1)
     cw = rng.uniform(0.0, 0.004, (64, 3)).astype(np.float32)
-    u, v, c = _terms(m, a, cw)
-    lo, hi = grey_range(v, c)
-    luma = cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    u, v, c, lo, hi, luma = _terms(cw)
     assert np.all(luma < lo)
     ones, zeros = np.ones(64, np.float32), np.zeros(64, np.float32)
     y = soft_light(u, v, c, luma, ones, zeros, lo, hi)
@@ -102,12 +99,9 @@ def test_soft_clip_clips_a_target_below_the_grey_range_per_channel() -> None:
 def test_hue_weight_is_a_mix_with_the_per_channel_clip() -> None:
     """Weight 0 is the per-channel clip of the light asked for (the global tone map), 1 the
     soft clip, between them the straight mix."""
-    m, a = _screen()
     rng = np.random.default_rng(2)
     cw = rng.uniform(0.0, 0.6, (64, 3)).astype(np.float32)
-    u, v, c = _terms(m, a, cw)
-    lo, hi = grey_range(v, c)
-    luma = cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    u, v, c, lo, hi, luma = _terms(cw)
     g, o = np.full(64, 1.3, np.float32), np.full(64, 0.01, np.float32)
     asked = np.clip(1.3 * u + 0.01 * v + c, 0.0, 1.0)
     soft = soft_light(u, v, c, luma, g, o, lo, hi)
@@ -125,9 +119,7 @@ def test_soft_clip_keeps_hue_better_than_clipping() -> None:
     cw = np.column_stack(
         [rng.uniform(0.0, 0.05, 64), rng.uniform(0.3, 0.6, 64), rng.uniform(0.3, 0.6, 64)]
     ).astype(np.float32)
-    u, v, c = _terms(m, a, cw)
-    lo, hi = grey_range(v, c)
-    luma = cw @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    u, v, c, lo, hi, luma = _terms(cw)
     ones, zeros = np.ones(64, np.float32), np.zeros(64, np.float32)
     soft = soft_light(u, v, c, luma, ones, zeros, lo, hi)
     hard = np.clip(u + c, 0.0, 1.0)
