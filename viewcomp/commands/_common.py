@@ -194,8 +194,8 @@ def add_tone_choice(p: argparse.ArgumentParser, where: str = "") -> None:
         default=None,
         help="how the tone map is chosen: paper (Eq. 21/22), global (one alpha, beta of the "
         "smallest predicted error: the pixel method's default) or adaptive (a smooth gain and "
-        "offset field with a hue-keeping soft clip into each pixel's reach; pixel method, one "
-        f"eye){where}",
+        "offset field with a hue-keeping soft clip into each pixel's reach, mixed per shot with "
+        f"a per-channel clip; pixel method, one eye){where}",
     )
 
 
