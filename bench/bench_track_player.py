@@ -181,9 +181,9 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
     pipeline.yunet.detect(plan[0])  # the network's first run sets it up (slow, once)
     detect, detect_ms = pipeline.yunet.detect, []
 
-    def timed_detect(image: np.ndarray):  # type: ignore[no-untyped-def]
+    def timed_detect(image: np.ndarray, follow: np.ndarray | None = None):  # type: ignore[no-untyped-def]
         t0 = time.perf_counter()
-        out = detect(image)
+        out = detect(image, follow=follow)
         detect_ms.append(1e3 * (time.perf_counter() - t0))
         return out
 
@@ -278,6 +278,9 @@ def main(argv: list[str] | None = None) -> int:
         "rounds": rounds,
     }
     print(json.dumps(result, indent=1))
+    if not any(r["published"] for r in rounds):  # the tracker stopped: no figure to trust
+        print("bench_track_player: no eye was published (see above)", file=sys.stderr)
+        return 1
     return 0
 
 
