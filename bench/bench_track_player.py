@@ -54,6 +54,7 @@ from viewcomp.rt.play.xvfb import Xvfb, xvfb_available
 from viewcomp.rt.track.run import Pipeline, TrackerThread, default_options
 from viewcomp.rt.track.simwalk import background, render_frame, walk_camera
 from viewcomp.rt.track.source import FrameSource
+from viewcomp.rt.track.yunet import Faces
 
 FPS = 30.0
 
@@ -181,7 +182,7 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
     pipeline.yunet.detect(plan[0])  # the network's first run sets it up (slow, once)
     detect, detect_ms = pipeline.yunet.detect, []
 
-    def timed_detect(image: np.ndarray, follow: np.ndarray | None = None):  # type: ignore[no-untyped-def]
+    def timed_detect(image: np.ndarray, follow: np.ndarray | None = None) -> Faces:
         t0 = time.perf_counter()
         out = detect(image, follow=follow)
         detect_ms.append(1e3 * (time.perf_counter() - t0))
