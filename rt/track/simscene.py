@@ -3,8 +3,9 @@
 A test that ranges faces must not place them with the detector it tests. Here a person is a
 photograph whose eyes and nose tip were located once by hand (:class:`Person`: pixels), and
 the truth is anatomical: the eyes are ``ipd`` metres apart (63 mm, the adult mean), the
-head's midpoint between the eyes is at a known 3-D position, facing the camera's centre and
-turned by a known yaw.
+head's midpoint between the eyes is at a known 3-D position, facing the camera's centre (or a
+point on the screen, as a viewer watching the picture does, nodding against the camera above
+it) and turned by a known yaw.
 
 A flat photograph turned in 3-D would be a poor head: its nose does not move against its eyes
 (a real head's does: that is how a turn is seen), so the photograph gets a relief: the face
@@ -125,10 +126,13 @@ def _relief(
     return -x * np.tan(yaw0) + b * along * across + round_ / np.cos(yaw0)
 
 
-def head_frame(device: Device, eye: np.ndarray) -> np.ndarray:
-    """(3, 3) rows side, up, back: a head at ``eye`` facing the camera's centre, upright
-    (its side along the camera's image x)."""
-    back = np.asarray(device.position, np.float64) - eye
+def head_frame(device: Device, eye: np.ndarray, look: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3) rows side, up, back: a head at ``eye`` facing ``look`` (3,) metres (None: the
+    camera's centre), upright (its side along the camera's image x, level across the face):
+    ``back`` points where the face looks; a head looking below or above the camera is seen
+    nodding (its eye-to-mouth length foreshortened, the eyes' separation not)."""
+    target = np.asarray(device.position if look is None else look, np.float64)
+    back = target - eye
     back /= np.linalg.norm(back)
     rot, _ = device.pose()
     side = rot[0] - (rot[0] @ back) * back
@@ -146,6 +150,7 @@ def render_person(
     nose_depth: float = NOSE_DEPTH,
     gain: float = 1.0,
     occluder: tuple[float, float, float, float] | None = None,
+    look: np.ndarray | None = None,
 ) -> np.ndarray:
     """``frame`` (h, w, 3) float32 BGR 0..1 with ``person``'s head drawn over it.
 
@@ -158,6 +163,8 @@ def render_person(
         gain: the face's brightness factor (dim light < 1).
         occluder: (x0, y0, x1, y1) in units of the eyes' separation from the eyes'
             midpoint in the photograph (x right, y down), drawn dark grey over the face.
+        look: (3,) metres: the point the head faces before its ``turn`` (None: the
+            camera's centre; a viewer watching the screen faces a point on it).
 
     Returns:
         The frame (a new array).
@@ -191,10 +198,12 @@ def render_person(
     alpha[np.abs(x * np.cos(person.yaw)) > 0.98 * HEAD_RADIUS * ipd] = 0.0  # beyond the head
     c, sn = np.cos(turn), np.sin(turn)
     xr, zr = x * c + z * sn, -x * sn + z * c
-    side, up, back = head_frame(device, e)
+    side, up, back = head_frame(device, e, look)
     pts = e + xr[..., None] * side + y[..., None] * up + zr[..., None] * back
     uv = device.project(pts.reshape(-1, 3))
-    depth = (pts.reshape(-1, 3) - np.asarray(device.position)) @ (-back)
+    sight = np.asarray(device.position, np.float64) - e  # from the head to the camera
+    sight /= np.linalg.norm(sight)
+    depth = (pts.reshape(-1, 3) - np.asarray(device.position)) @ (-sight)
     keep = (alpha.ravel() > 0) & np.all(np.isfinite(uv), axis=1)
     h, w = frame.shape[:2]
     pu = np.rint(uv[:, 0]).astype(np.int64)

@@ -16,8 +16,9 @@ nose tip read off enlarged crops with a pixel grid, never by YuNet or the tracke
 Each is drawn as a 2.5-D head (:mod:`viewcomp.rt.track.simscene`) with a 63 mm
 interpupillary distance at a known 3-D eye midpoint in a simulated 1280x720 webcam (90 degrees
 wide, the screen's top edge), facing the camera or turned by a known yaw (25 or 45 degrees
-either way), so the ranging (:mod:`viewcomp.rt.track.anatomy`) is judged against an
-anatomical truth. Run this file as a
+either way), or facing a point of the picture below the camera ("watching": what a viewer
+does, the head nodding against the camera by up to 30 degrees), so the ranging
+(:mod:`viewcomp.rt.track.anatomy`) is judged against an anatomical truth. Run this file as a
 script for the table per person and condition.
 """
 
@@ -67,7 +68,19 @@ CONDITIONS = {
     "turned 45": {"turn": math.radians(45)},
     "dim": {"gain": 0.3, "noise": 0.02},
     "occluded": {"occluder": (-0.9, 0.75, 0.9, 2.0)},  # a hand over mouth and chin
+    # facing a point of the picture (x within 0.5 m of the screen's centre, y within 0.3 m),
+    # not the camera above it: the head nods against the camera by up to 30 degrees
+    "watching": {"watch": (0.5, 0.3)},
 }
+
+
+def look_at(kw: dict, rng: np.random.Generator) -> np.ndarray | None:
+    """Where a condition's head faces: a random point of the screen (z = 0) for
+    ``"watch"``, else None (the camera)."""
+    if "watch" not in kw:
+        return None
+    hx, hy = kw["watch"]
+    return np.array([rng.uniform(-hx, hx), rng.uniform(-hy, hy), 0.0])
 
 
 def poses(n: int, seed: int) -> np.ndarray:
@@ -102,7 +115,7 @@ def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.nd
                 # itself (luispedro) is turned back by its own yaw first, or mirrored
                 who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
                 f = render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
-                                  occluder=kw.get("occluder"))  # fmt: skip
+                                  occluder=kw.get("occluder"), look=look_at(kw, rng))  # fmt: skip
                 faces = det.detect(finish(f, rng, kw.get("noise", 0.01)))
                 if len(faces):
                     got[i] = head_pose(dev, faces.landmarks[:1]).eyes[0]
@@ -127,9 +140,10 @@ def measure_tracked(cond: str, n: int = 12, seed: int = 0) -> dict[str, dict[str
         got = np.full_like(truth, np.nan)
         for i, e in enumerate(truth):
             who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
+            look = look_at(kw, rng)
             frames = [
                 finish(render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
-                                     occluder=occ), rng, kw.get("noise", 0.01))
+                                     occluder=occ, look=look), rng, kw.get("noise", 0.01))
                 for occ in (None, kw.get("occluder"))
             ]  # fmt: skip
             pipeline = Pipeline(ArraySource(frames, 10.0), dev, TrackOptions())
@@ -172,19 +186,28 @@ SHORT = {
     ("luispedro", "turned 45"): "1.162: yaw under-read",
     ("luispedro", "occluded"): "1.061: a quarter of frames not found, the rest spread",
 }
+# The same, where the median sits at the bar's edge, so that a host's floating point in
+# OpenCV's DNN may put it either side (not strict):
+EDGE = {
+    ("luispedro", "watching"): "1.051: his photograph, turned back 43 degrees, nodding",
+}
+
+
+def _cell(name: str, cond: str) -> object:
+    """One (person, condition) case, marked where it is a known shortfall."""
+    if (name, cond) in SHORT:
+        return pytest.param(
+            name, cond, marks=pytest.mark.xfail(strict=True, reason=SHORT[name, cond])
+        )
+    if (name, cond) in EDGE:
+        return pytest.param(
+            name, cond, marks=pytest.mark.xfail(strict=False, reason=EDGE[name, cond])
+        )
+    return pytest.param(name, cond)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    ("name", "cond"),
-    [
-        pytest.param(n, c, marks=pytest.mark.xfail(strict=True, reason=SHORT[n, c]))
-        if (n, c) in SHORT
-        else (n, c)
-        for n in NAMES
-        for c in CONDITIONS
-    ],
-)
+@pytest.mark.parametrize(("name", "cond"), [_cell(n, c) for n in NAMES for c in CONDITIONS])
 def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
     """The issue's bias criterion per person and condition: the median of measured / true
     distance within 0.95..1.05 (the box-size tracker was 0.70 on other people's photos)."""
@@ -200,7 +223,7 @@ def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
             n,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="measured 68 % (astronaut), 60 % (hopper), 68 % (luispedro) of all "
+                reason="measured 74 % (astronaut), 64 % (hopper), 69 % (luispedro) of all "
                 "frames: turns of 25-45 degrees, occlusion (docs/INTERFACES.md)",
             ),
         )
@@ -244,6 +267,19 @@ def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
     for cond in ("frontal", "dim"):
         s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
         assert s["found"] == 1.0 and s["within"] >= 0.8, (cond, s)
+
+
+@pytest.mark.slow
+def test_viewers_watching_the_picture_are_all_found_and_ranged_as_facing_the_camera(measured):
+    """A head facing a point of the picture nods against the camera above the screen by up
+    to 30 degrees; the eyes' separation does not shorten with a nod: every face is found and
+    its median distance ratio is within 3 % of the same person's facing the camera (measured
+    0.975 / 1.036 / 1.051 watching against 0.993 / 1.017 / 1.033 frontal)."""
+    for name in NAMES:
+        w = scores(measured[name, "watching"]["truth"], measured[name, "watching"]["got"])
+        f = scores(measured[name, "frontal"]["truth"], measured[name, "frontal"]["got"])
+        assert w["found"] == 1.0, (name, w)
+        assert abs(w["median_ratio"] / f["median_ratio"] - 1.0) < 0.03, (name, w, f)
 
 
 @pytest.mark.slow
