@@ -435,7 +435,10 @@ def test_player_follows_the_tracker(tmp_path: Path):
 
     def on_frame(player, f) -> None:
         drawn.append(tuple(f.record.eye))
-        if not tracker._thread.is_alive() and len(drawn) > 5:  # the sequence has ended
+        counts = player.hub.snapshot().get("track")
+        settled = counts is not None and counts.applied == published.sent
+        # the sequence has ended and its last eye was applied before this frame was drawn
+        if not tracker._thread.is_alive() and len(drawn) > 5 and settled:
             player.stop()
 
     opts = PlayerOptions(windowed=True, audio=False, stdin_fd=None, max_seconds=20.0,
