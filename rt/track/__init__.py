@@ -6,12 +6,13 @@
 - ``live_faces``: YuNet for a live camera: a cheap search per frame, the full one on a worker.
 - ``boxes``: how much two face boxes overlap.
 - ``anatomy``: a viewer's eye from the landmarks: distance from the interpupillary distance,
-  corrected for the head's turn.
+  corrected for the head's turn; a viewer's face height and the range it gives a turned face.
 - ``faces``: the fallback detector (OpenCV's LBP cascade, as scikit-image ships it).
 - ``pose``: the fallback's ranging: a face's box <-> the viewer's eye (box-size convention).
 - ``scale``: the fallback's face size from its own near view (template matching).
 - ``filter``: the One-Euro filter that smooths each viewer's eye.
-- ``tracker``: viewers over time: matching, hold when lost, easing to the default eye.
+- ``tracker``: viewers over time: matching, each viewer's face height, hold when lost,
+  easing to the default eye.
 - ``publish``: where eyes go: ``eye``/``eyes`` lines, OSC, a player's input queue.
 - ``run``: the loop from frames to publishers, and its thread for ``play --track-camera``.
 - ``simscene``: photographs of people drawn as 2.5-D heads placed by their eyes (tests).

@@ -18,8 +18,21 @@ Per face (five landmarks, pixels: left eye, right eye, nose tip, mouth corners):
    tip, which stands ``nose_depth`` IPD in front of the eyes, sideways by
    nose_depth IPD sin(yaw): with r = (nose - eyes' midpoint) . eye direction / s,
    tan(yaw) = r / nose_depth and cos(yaw) = 1 / sqrt(1 + tan(yaw)^2). Pitch (nodding) moves
-   the nose across the eye line and does not change s.
+   the nose across the eye line and does not change s; a head that nods and turns shows its
+   eye line rolled and its nose reads the turn short (exact landmarks of heads watching the
+   screen, turned 45 degrees: 18-39 degrees), which the face height below takes back.
 4. The eye (the eyes' midpoint) is the camera's centre + R m, in the world frame.
+
+A head turned far is ranged better by a length that a turn does not shorten: the eyes' midpoint
+to the mouth's, across the eye line (``height``), which a nod shortens instead. People differ in
+it more than in IPD, so it is measured per viewer (:mod:`viewcomp.rt.track.tracker`): on the
+frames read frontal (yaw under ``FRONTAL``), its length in metres is ``height`` x the IPD's
+range (:func:`face_height`). A turn the nose reads short leaves the IPD's range long, never
+short, so where the face height ranges a face nearer than the IPD does by more than its own
+noise, and the nose reads a turn too, the face height is believed (:func:`ranged_eyes`); a face
+it ranges nearer is not taken into the viewer's height. Both readings assume the viewer
+watches the picture: the head faces ``look`` (the screen's centre, the world origin), so the
+camera above or below it sees the face nodding by a known angle (:func:`nod`).
 
 Error model (docs/INTERFACES.md): the range is proportional to the viewer's true IPD, so a
 person whose IPD differs from ``ipd`` by 6 % is ranged 6 % off (x, y scale with it along the
@@ -41,20 +54,45 @@ IPD = 0.063  # metres: mean adult interpupillary distance
 # The nose tip's depth in front of the pupils, as a fraction of the IPD (about 25 mm).
 NOSE_DEPTH = 0.4
 MAX_YAW = np.radians(60.0)  # a larger estimate is clipped (a nearly profile face)
+# A face whose read yaw is under FRONTAL measures its viewer's face height; a face ranged by
+# that height NEARER_FROM nearer than by its IPD begins to be ranged by it, NEARER_TO nearer
+# wholly (the height's per-frame scatter is about 5 %, one standard deviation), if its nose
+# reads a turn: none under TURN_FROM, wholly past TURN_TO (a frontal face whose mouth is
+# covered has mouth landmarks that are guesses).
+FRONTAL = np.radians(15.0)
+NEARER_FROM = 0.04
+NEARER_TO = 0.12
+TURN_FROM = np.radians(5.0)
+TURN_TO = np.radians(15.0)
+LOOK = (0.0, 0.0, 0.0)  # metres: where viewers look, the screen's centre
 
 
 @dataclass
 class HeadPose:
     """What the landmarks of N faces say: ``eyes`` (N, 3) metres, world frame (the eyes'
-    midpoint); ``range`` (N,) metres from the camera's centre; ``yaw`` and ``roll`` (N,)
-    radians (yaw positive when the nose points to the image's right); ``separation`` (N,)
-    the eyes' separation in normalised units (radians)."""
+    midpoint); ``range`` (N,) metres from the camera's centre (from the IPD); ``yaw`` and
+    ``roll`` (N,) radians (yaw positive when the nose points to the image's right);
+    ``separation`` (N,) the eyes' separation in normalised units (radians); ``height`` (N,)
+    normalised units, the eyes' midpoint to the mouth corners' across the eye line (NaN
+    without a mouth); ``rays`` (N, 3) unit vectors from the camera's centre ``origin`` (3,)
+    to the eyes."""
 
     eyes: np.ndarray
     range: np.ndarray
     yaw: np.ndarray
     roll: np.ndarray
     separation: np.ndarray
+    height: np.ndarray
+    rays: np.ndarray
+    origin: np.ndarray
+
+    def take(self, keep: np.ndarray) -> HeadPose:
+        """The faces where ``keep`` (N,) bool is true."""
+        k = np.asarray(keep, bool)
+        return HeadPose(
+            self.eyes[k], self.range[k], self.yaw[k], self.roll[k], self.separation[k],
+            self.height[k], self.rays[k], self.origin,
+        )  # fmt: skip
 
 
 def head_pose(
@@ -82,9 +120,10 @@ def head_pose(
     if lm.ndim != 3 or lm.shape[2] != 2 or lm.shape[1] < 2:
         raise ValueError(f"landmarks must have shape (N, 5, 2) or (N, 2, 2), got {lm.shape}")
     n = len(lm)
+    origin = np.asarray(device.position, np.float64)
     if n == 0:
         z = np.zeros(0)
-        return HeadPose(np.zeros((0, 3)), z, z, z, z)
+        return HeadPose(np.zeros((0, 3)), z, z, z, z, z, np.zeros((0, 3)), origin)
     rays = device.rays_through(lm)  # (N, K, 3) unit, world
     m = rays[:, 0] + rays[:, 1]
     m /= np.linalg.norm(m, axis=1, keepdims=True)
@@ -104,9 +143,76 @@ def head_pose(
         yaw = np.clip(np.arctan2(r, nose_depth), -MAX_YAW, MAX_YAW)
     else:
         yaw = np.zeros(n)
+    if lm.shape[1] >= 5:
+        across = np.stack([-along[:, 1], along[:, 0]], axis=1)
+        mouth = 0.5 * (q[:, 3] + q[:, 4]) - 0.5 * (q[:, 0] + q[:, 1])
+        height = np.abs(np.sum(mouth * across, axis=1))
+    else:
+        height = np.full(n, np.nan)
     rng = ipd * np.cos(yaw) / sep
-    eyes = np.asarray(device.position, np.float64) + m * rng[:, None]
-    return HeadPose(eyes, rng, yaw, roll, sep)
+    eyes = origin + m * rng[:, None]
+    return HeadPose(eyes, rng, yaw, roll, sep, height, m, origin)
+
+
+def nod(
+    origin: np.ndarray, eyes: np.ndarray, look: tuple[float, float, float] = LOOK
+) -> tuple[np.ndarray, np.ndarray]:
+    """How a camera at ``origin`` (3,) sees an upright head at ``eyes`` (N, 3) facing ``look``
+    (metres): the face's downward direction (across its view) makes an angle a with the
+    camera's image plane. Returns (cos a, sin a), each (N,): cos a = 1 when the head faces
+    the camera; sin a > 0 when the mouth is nearer the camera than the eyes (the camera
+    below the head's line of sight)."""
+    e = np.asarray(eyes, np.float64).reshape(-1, 3)
+    face = np.asarray(look, np.float64) - e
+    face /= np.linalg.norm(face, axis=1, keepdims=True)
+    down = np.array([0.0, -1.0, 0.0]) + face[:, 1:2] * face  # the face's down, across its view
+    down /= np.maximum(np.linalg.norm(down, axis=1, keepdims=True), 1e-12)
+    sight = np.asarray(origin, np.float64) - e
+    sight /= np.linalg.norm(sight, axis=1, keepdims=True)
+    sin_a = np.sum(down * sight, axis=1)
+    return np.sqrt(np.clip(1.0 - sin_a**2, 1e-6, 1.0)), sin_a
+
+
+def face_height(pose: HeadPose, look: tuple[float, float, float] = LOOK) -> np.ndarray:
+    """(N,) metres: each face's eye-to-mouth length H from its IPD range R and its normalised
+    ``height`` h, for a viewer facing ``look``: the mouth, H cos a across the line of sight
+    and H sin a nearer than the eyes (:func:`nod`), is seen at h = H cos a / (R - H sin a),
+    so H = h R / (cos a + h sin a). Meaningful where the read yaw is small (:data:`FRONTAL`)."""
+    cos_a, sin_a = nod(pose.origin, pose.eyes, look)
+    return pose.height * pose.range / (cos_a + pose.height * sin_a)
+
+
+def _smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    t = np.clip((np.asarray(x, np.float64) - lo) / (hi - lo), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def ranged_eyes(
+    pose: HeadPose, height_m: float, look: tuple[float, float, float] = LOOK
+) -> tuple[np.ndarray, np.ndarray]:
+    """The faces ranged with one viewer's face height, ``height_m`` metres (measured by
+    :func:`face_height`).
+
+    The range is blended from the IPD's toward the face height's by a smoothstep in how much
+    nearer the height ranges the face (a share of the IPD's range), from :data:`NEARER_FROM`
+    to :data:`NEARER_TO`, times one in the read yaw, from :data:`TURN_FROM` to
+    :data:`TURN_TO`; the IPD's range where the mouth was not seen.
+
+    Returns:
+        The eyes (N, 3) metres, and (N,) how much nearer the height ranged each face (a
+        share; NaN where the mouth was not seen).
+    """
+    h = pose.height
+    ok = np.isfinite(h) & (h > 0)
+    rng = pose.range.copy()
+    nearer = np.full(len(rng), np.nan)
+    cos_a, sin_a = nod(pose.origin, pose.eyes[ok], look)
+    by_height = height_m * (cos_a / h[ok] + sin_a)  # face_height solved for the range
+    nearer[ok] = 1.0 - by_height / rng[ok]
+    w = _smoothstep(nearer[ok], NEARER_FROM, NEARER_TO)
+    w *= _smoothstep(np.abs(pose.yaw[ok]), TURN_FROM, TURN_TO)
+    rng[ok] = (1.0 - w) * rng[ok] + w * by_height
+    return pose.origin + pose.rays * rng[:, None], nearer
 
 
 def landmarks_of_head(
@@ -115,27 +221,32 @@ def landmarks_of_head(
     yaw: np.ndarray | float = 0.0,
     ipd: float = IPD,
     nose_depth: float = NOSE_DEPTH,
+    look: tuple[float, float, float] | None = None,
+    mouth: float | None = None,
 ) -> np.ndarray:
     """The inverse of :func:`head_pose` (tests): where the eyes and the nose tip of heads with
-    their eyes' midpoint at ``eyes`` (N, 3) metres appear, each head facing the camera's
-    centre, upright, turned by ``yaw`` radians (N,) about the vertical; (N, 3, 2) pixels."""
+    their eyes' midpoint at ``eyes`` (N, 3) metres appear, each head facing ``look`` (None:
+    the camera's centre), upright, turned by ``yaw`` radians (N,) about its vertical;
+    (N, 3, 2) pixels, or (N, 5, 2) with the mouth corners (0.7 IPD apart, ``mouth`` metres
+    below the eyes across the face, in the eyes' plane)."""
     e = np.asarray(eyes, np.float64).reshape(-1, 3)
     yw = np.broadcast_to(np.asarray(yaw, np.float64), (len(e),))
-    out = np.empty((len(e), 3, 2))
+    out = np.empty((len(e), 3 if mouth is None else 5, 2))
     for i, (p, t) in enumerate(zip(e, yw, strict=True)):
-        back = np.asarray(device.position, np.float64) - p  # from the head to the camera
+        target = np.asarray(device.position if look is None else look, np.float64)
+        back = target - p  # where the head faces
         back /= np.linalg.norm(back)
         side = np.cross(np.array([0.0, 1.0, 0.0]), back)
         side /= np.linalg.norm(side)
         up = np.cross(back, side)
         c, s = np.cos(t), -np.sin(t)  # positive: the nose toward the image's right
         side_t, back_t = c * side + s * back, c * back - s * side
-        pts = np.stack(
-            [
-                p - 0.5 * ipd * side_t,
-                p + 0.5 * ipd * side_t,
-                p + nose_depth * ipd * back_t - 0.5 * ipd * up,
-            ]
-        )
-        out[i] = device.project(pts)
+        pts = [
+            p - 0.5 * ipd * side_t,
+            p + 0.5 * ipd * side_t,
+            p + nose_depth * ipd * back_t - 0.5 * ipd * up,
+        ]
+        if mouth is not None:
+            pts += [p - 0.35 * ipd * side_t - mouth * up, p + 0.35 * ipd * side_t - mouth * up]
+        out[i] = device.project(np.stack(pts))
     return out

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.world.rig import Device, Rig, tracking_camera
-from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH, head_pose
+from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH, HeadPose, head_pose
 from viewcomp.rt.track.boxes import iou
 from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
 from viewcomp.rt.track.live_faces import LiveFaces
@@ -197,16 +197,17 @@ class Pipeline:
             self._since_full = 0
         return hints, False
 
-    def _landmark_eyes(self, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-        """YuNet: the eyes (N, 3) metres from the landmarks and the boxes (N, 4) pixels of
-        the faces between ``near`` / 1.5 and 1.5 ``far`` from the camera."""
+    def _landmark_eyes(self, frame: Frame) -> tuple[HeadPose, np.ndarray]:
+        """YuNet: the landmarks' reading (eyes (N, 3) metres, :class:`HeadPose`) and the
+        boxes (N, 4) pixels of the faces between ``near`` / 1.5 and 1.5 ``far`` from the
+        camera."""
         assert self.yunet is not None
         # the tracked faces are followed in crops where the frame's search misses them
         faces = self.yunet.detect(frame.image, follow=self.tracker.hints())
         o = self.options
         pose = head_pose(self.device, faces.landmarks, o.ipd, o.nose_depth)
         ok = (pose.range >= o.near / 1.5) & (pose.range <= o.far * 1.5)
-        return pose.eyes[ok], faces.boxes[ok]
+        return pose.take(ok), faces.boxes[ok]
 
     def _box_eyes(self, frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The cascade fallback: eyes (N, 3) from the boxes' size, the boxes as found and as
@@ -220,14 +221,16 @@ class Pipeline:
 
     def step(self, frame: Frame) -> FrameResult:
         """Detect, range, filter and publish one frame."""
+        pose: HeadPose | None = None
         if self.yunet is not None:
-            raw, sized = self._landmark_eyes(frame)
-            boxes, gray = sized, None
+            pose, sized = self._landmark_eyes(frame)
+            raw, boxes, gray = pose.eyes, sized, None
         else:
             raw, boxes, sized, gray = self._box_eyes(frame)
         ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
         raw, boxes, sized = raw[ok], boxes[ok], sized[ok]
-        eyes = self.tracker.update(raw, sized, frame.t)
+        pose = pose.take(ok) if pose is not None else None
+        eyes = self.tracker.update(raw, sized, frame.t, pose)
         if self.options.templates and gray is not None:
             self._keep_templates(gray, boxes, frame.t)
         sent = False

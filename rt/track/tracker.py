@@ -9,6 +9,13 @@ who cross keep their identities where a nearest-first choice could swap them), a
 than ``gate`` metres is not a match; an unmatched eye starts a track (a viewer entering); a
 track not seen for ``hold`` seconds ends (a viewer leaving).
 
+Given the faces' landmark readings (:class:`~viewcomp.rt.track.anatomy.HeadPose`), each track
+also learns its viewer's face height (eyes to mouth, metres) from the faces read frontal (the
+mean of the last ``HEIGHT_FRAMES``; a face the height already ranges nearer is not taken: it is
+turned more than its nose says), and a face matched to it is ranged with that height where the
+height says it is nearer (:func:`~viewcomp.rt.track.anatomy.ranged_eyes`): the assignment
+compares each face, ranged with each track's own height, to that track's prediction.
+
 What is published (:meth:`EyeTracker.update`):
 
 - ``faces="nearest"``: one eye: the nearest viewer's (distance from the screen centre, the
@@ -31,7 +38,17 @@ from typing import Any
 
 import numpy as np
 
+from viewcomp.rt.track.anatomy import (
+    FRONTAL,
+    NEARER_FROM,
+    NEARER_TO,
+    HeadPose,
+    face_height,
+    ranged_eyes,
+)
 from viewcomp.rt.track.filter import OneEuroFilter
+
+HEIGHT_FRAMES = 30  # a viewer's face height is the mean of its last this many frontal frames
 
 
 @dataclass
@@ -39,7 +56,8 @@ class TrackerConfig:
     """Tracking settings; times in seconds, positions in metres (world frame).
 
     ``min_cutoff`` (Hz) and ``beta`` (Hz per m/s) are the One-Euro filter's, ``d_cutoff``
-    its speed estimate's cutoff (Hz).
+    its speed estimate's cutoff (Hz). ``face_height``: learn each viewer's face height and
+    range their turned faces by it (False: the IPD's range alone, as a comparison).
     """
 
     faces: str = "nearest"
@@ -51,6 +69,7 @@ class TrackerConfig:
     d_cutoff: float = 1.0
     gate: float = 0.5
     switch_margin: float = 0.3
+    face_height: bool = True
 
 
 @dataclass
@@ -58,7 +77,9 @@ class Track:
     """One viewer: ``eye`` (3,) the filtered eye, ``box`` (4,) the last face box (pixels),
     ``seen`` the time of the last detection, ``id`` a number unique in a tracker, ``index``
     the detection it was last given (its row in that frame's eyes), ``template`` whatever
-    the caller keeps per viewer (the pipeline: its face template, or None)."""
+    the caller keeps per viewer (the pipeline: its face template, or None); ``raw`` (3,)
+    the eye it was last given, before the filter; ``face_height`` metres, the viewer's eyes
+    to mouth (NaN until a frontal face was seen), from ``frontal`` frames."""
 
     id: int
     filter: OneEuroFilter
@@ -68,6 +89,21 @@ class Track:
     index: int = -1
     template: Any = None
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    raw: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    face_height: float = float("nan")
+    frontal: int = 0
+
+    def measure(self, height: float, yaw: float, nearer: float = float("nan")) -> None:
+        """Take one face's eye-to-mouth length (metres, :func:`face_height`) read at ``yaw``
+        radians into the viewer's face height if the face was read frontal and the height
+        known so far did not range it :data:`NEARER_FROM` nearer than its IPD (turned more
+        than its nose says) nor :data:`NEARER_TO` farther (an outlier) (``nearer``:
+        :func:`ranged_eyes`' share; NaN before a height is known)."""
+        odd = not -NEARER_TO < nearer < NEARER_FROM if np.isfinite(nearer) else False
+        if abs(yaw) < FRONTAL and not odd and np.isfinite(height) and height > 0:
+            self.frontal = min(self.frontal + 1, HEIGHT_FRAMES)
+            h = self.face_height if self.frontal > 1 else height
+            self.face_height = h + (height - h) / self.frontal
 
     def predict(self, t: float, horizon: float = 0.5) -> np.ndarray:
         """(3,) the eye expected at time t: the last eye moved on by the velocity for at
@@ -99,14 +135,28 @@ class EyeTracker:
         """(K, 4) boxes where the current tracks' faces were last seen."""
         return np.asarray([t.box for t in self.tracks], np.float64).reshape(-1, 4)
 
-    def _match(self, eyes: np.ndarray, boxes: np.ndarray, t: float) -> None:
+    def _candidates(self, eyes: np.ndarray, pose: HeadPose | None) -> tuple[np.ndarray, np.ndarray]:
+        """(N, K, 3): each face's eye as each track would range it (its face height), and
+        (N, K) how much nearer the height ranged it (a share; NaN: not ranged by a height)."""
+        out = np.repeat(eyes[:, None, :], len(self.tracks), axis=1)
+        nearer = np.full(out.shape[:2], np.nan)
+        if pose is not None:
+            for k, tr in enumerate(self.tracks):
+                if np.isfinite(tr.face_height):
+                    out[:, k], nearer[:, k] = ranged_eyes(pose, tr.face_height)
+        return out, nearer
+
+    def _match(self, eyes: np.ndarray, boxes: np.ndarray, t: float, pose: HeadPose | None) -> None:
         from scipy.optimize import linear_sum_assignment
 
         c = self.config
         used_e: set[int] = set()
+        heights = face_height(pose) if pose is not None else np.full(len(eyes), np.nan)
+        yaws = pose.yaw if pose is not None else np.zeros(len(eyes))
         if len(eyes) and self.tracks:
             pred = np.asarray([tr.predict(t) for tr in self.tracks])
-            cost = np.linalg.norm(eyes[:, None, :] - pred[None, :, :], axis=2)  # (N, K)
+            cand, nearer = self._candidates(eyes, pose)
+            cost = np.linalg.norm(cand - pred[None, :, :], axis=2)  # (N, K)
             gated = np.where(cost <= c.gate, cost, 1e6)  # a pair beyond the gate is no match
             rows, cols = linear_sum_assignment(gated)
             for i, k in zip(rows.tolist(), cols.tolist(), strict=True):
@@ -118,7 +168,9 @@ class EyeTracker:
                     tr.filter.reset()
                     tr.velocity = np.zeros(3)
                 before, dt = tr.eye, t - tr.seen
-                tr.eye = tr.filter(eyes[i], t)
+                tr.raw = cand[i, k].copy()
+                tr.eye = tr.filter(tr.raw, t)
+                tr.measure(float(heights[i]), float(yaws[i]), float(nearer[i, k]))
                 if 0.0 < dt <= c.hold:  # smoothed velocity of the filtered eye, m/s
                     v = (tr.eye - before) / dt
                     tr.velocity = 0.5 * tr.velocity + 0.5 * v
@@ -128,7 +180,10 @@ class EyeTracker:
         for i in range(len(eyes)):
             if i not in used_e:
                 f = OneEuroFilter(c.min_cutoff, c.beta, c.d_cutoff)
-                self.tracks.append(Track(self._next_id, f, f(eyes[i], t), boxes[i].copy(), t, i))
+                tr = Track(self._next_id, f, f(eyes[i], t), boxes[i].copy(), t, i)
+                tr.raw = eyes[i].copy()
+                tr.measure(float(heights[i]), float(yaws[i]))
+                self.tracks.append(tr)
                 self._next_id += 1
         self.tracks = [tr for tr in self.tracks if t - tr.seen <= c.hold]
 
@@ -159,20 +214,29 @@ class EyeTracker:
         k = 1.0 if c.ease <= 0 else _smoothstep((since - c.hold) / c.ease)
         return (1.0 - k) * self._lost_eye + k * default
 
-    def update(self, eyes: np.ndarray, boxes: np.ndarray, t: float) -> np.ndarray:
+    def update(
+        self, eyes: np.ndarray, boxes: np.ndarray, t: float, pose: HeadPose | None = None
+    ) -> np.ndarray:
         """One frame's detections -> the eyes to publish.
 
         Args:
             eyes: (N, 3) metres, the eyes estimated from this frame's faces (N may be 0).
             boxes: (N, 4) the faces' boxes (x, y, w, h), pixels, in the same order.
             t: the frame's time, seconds.
+            pose: the same faces' landmark readings (``eyes`` is ``pose.eyes``), or None
+                (a detector without landmarks): with it, tracks learn and use their
+                viewers' face heights.
 
         Returns:
             (K, 3) float64 metres: K = 1 for ``"nearest"``, K >= 1 for ``"all"``.
         """
         e = np.asarray(eyes, np.float64).reshape(-1, 3)
         b = np.asarray(boxes, np.float64).reshape(-1, 4)
-        self._match(e, b, float(t))
+        if pose is not None and len(pose.range) != len(e):
+            raise ValueError(f"pose has {len(pose.range)} faces, eyes {len(e)}")
+        if not self.config.face_height:
+            pose = None
+        self._match(e, b, float(t), pose)
         one = self._nearest(float(t))
         if self.config.faces == "all" and self.tracks:
             ordered = sorted(self.tracks, key=lambda tr: float(np.linalg.norm(tr.eye)))
