@@ -139,8 +139,8 @@ def _stdin_fd() -> int | None:
 
 def _tracker(args: argparse.Namespace, rig: object, all_faces: bool) -> tuple[object, ...]:
     """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early): the
-    bundle's tracking camera or ``--tracker``'s, ``--detector`` and ``--ipd`` as for
-    ``viewcomp track``, its other options at their defaults."""
+    bundle's tracking camera or ``--tracker``'s, ``--detector``, ``--ipd`` and
+    ``--no-face-height`` as for ``viewcomp track``, its other options at their defaults."""
     from viewcomp.calib.errors import UsageError
 
     if not args.track_camera:
@@ -156,8 +156,10 @@ def _tracker(args: argparse.Namespace, rig: object, all_faces: bool) -> tuple[ob
     from viewcomp.rt.track.run import TrackerThread, build, default_options
 
     rig = with_tracker_file(rig, args.tracker)  # type: ignore[arg-type]
+    options = default_options(rig)
     options = replace(
-        default_options(rig),
+        options,
+        tracker=replace(options.tracker, face_height=not args.no_face_height),
         detector_kind=args.detector,
         ipd=checked_ipd(args, rig),
         realtime=True,  # a video or an image sequence is paced as a camera would be

@@ -48,6 +48,12 @@ def add_tracking_camera_arguments(g: argparse._ArgumentGroup) -> None:
         help="viewers' interpupillary distance, metres (default: the rig's "
         "[tracker] ipd, else 0.063)",
     )
+    g.add_argument(
+        "--no-face-height",
+        action="store_true",
+        help="range every face by its eyes' separation alone (default: each viewer's face "
+        "height, eyes to mouth, learned while they face the screen, ranges their turned head)",
+    )
 
 
 def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
@@ -217,6 +223,7 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         ease=args.ease,
         min_cutoff=args.min_cutoff,
         beta=args.beta,
+        face_height=not args.no_face_height,
     )
     return TrackOptions(
         detector_kind=args.detector,

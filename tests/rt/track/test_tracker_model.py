@@ -204,3 +204,29 @@ def test_a_pose_of_other_faces_is_refused():
     p = head_pose(dev, landmarks_of_head(dev, np.array([[0.0, 0.1, 2.0]]), mouth=0.07))
     with pytest.raises(ValueError, match="pose has 1 faces, eyes 2"):
         EyeTracker().update(np.full((2, 3), 2.0), np.zeros((2, 4)), 0.0, p)
+
+
+def test_no_face_height_reaches_track_and_play(tmp_path: Path):
+    """``--no-face-height`` (shared by ``track`` and ``play --track-camera``) turns the face
+    height off in the tracker each command builds; it is on by default."""
+    from viewcomp.cli import build_parser
+    from viewcomp.commands.play import _tracker
+    from viewcomp.commands.track import tracker_options
+
+    write_walk(tmp_path / "w", seconds=12.0, fps=10.0, frames=2)
+    rig = walk_rig()
+    parser = build_parser()
+    for extra, on in (([], True), (["--no-face-height"], False)):
+        rig_file = str(tmp_path / "w" / "rig.toml")
+        args = parser.parse_args(
+            ["track", "--camera", str(tmp_path / "w"), "--rig", rig_file, *extra]
+        )
+        assert tracker_options(args, rig).tracker.face_height is on  # type: ignore[attr-defined]
+        args = parser.parse_args(
+            ["play", "x.vcb", "clip.mp4", "--track-camera", str(tmp_path / "w"), *extra]
+        )
+        (thread,) = _tracker(args, rig, False)
+        try:
+            assert thread.pipeline.tracker.config.face_height is on  # type: ignore[attr-defined]
+        finally:
+            thread.pipeline.close()  # type: ignore[attr-defined]
