@@ -75,7 +75,8 @@ class HeadPose:
     ``separation`` (N,) the eyes' separation in normalised units (radians); ``height`` (N,)
     normalised units, the eyes' midpoint to the mouth corners' across the eye line (NaN
     without a mouth); ``rays`` (N, 3) unit vectors from the camera's centre ``origin`` (3,)
-    to the eyes."""
+    to the eyes; ``nod`` (2, N): (cos a, sin a) of each head as :func:`nod` gives them for the
+    ``look`` of :func:`head_pose`."""
 
     eyes: np.ndarray
     range: np.ndarray
@@ -85,13 +86,14 @@ class HeadPose:
     height: np.ndarray
     rays: np.ndarray
     origin: np.ndarray
+    nod: np.ndarray
 
     def take(self, keep: np.ndarray) -> HeadPose:
         """The faces where ``keep`` (N,) bool is true."""
         k = np.asarray(keep, bool)
         return HeadPose(
             self.eyes[k], self.range[k], self.yaw[k], self.roll[k], self.separation[k],
-            self.height[k], self.rays[k], self.origin,
+            self.height[k], self.rays[k], self.origin, self.nod[:, k],
         )  # fmt: skip
 
 
@@ -100,6 +102,7 @@ def head_pose(
     landmarks: np.ndarray,
     ipd: float = IPD,
     nose_depth: float = NOSE_DEPTH,
+    look: tuple[float, float, float] = LOOK,
 ) -> HeadPose:
     """Eye positions from face landmarks.
 
@@ -110,6 +113,7 @@ def head_pose(
             used). (N, 2, 2) (eyes only) is taken as a frontal face.
         ipd: the viewer's interpupillary distance, metres (> 0).
         nose_depth: the nose tip's depth in front of the eyes, a fraction of ``ipd``.
+        look: (3,) metres, where the viewers' heads face (the nod of :class:`HeadPose`).
 
     Returns:
         :class:`HeadPose` of the N faces.
@@ -123,7 +127,7 @@ def head_pose(
     origin = np.asarray(device.position, np.float64)
     if n == 0:
         z = np.zeros(0)
-        return HeadPose(np.zeros((0, 3)), z, z, z, z, z, np.zeros((0, 3)), origin)
+        return HeadPose(np.zeros((0, 3)), z, z, z, z, z, np.zeros((0, 3)), origin, np.zeros((2, 0)))
     rays = device.rays_through(lm)  # (N, K, 3) unit, world
     m = rays[:, 0] + rays[:, 1]
     m /= np.linalg.norm(m, axis=1, keepdims=True)
@@ -151,7 +155,7 @@ def head_pose(
         height = np.full(n, np.nan)
     rng = ipd * np.cos(yaw) / sep
     eyes = origin + m * rng[:, None]
-    return HeadPose(eyes, rng, yaw, roll, sep, height, m, origin)
+    return HeadPose(eyes, rng, yaw, roll, sep, height, m, origin, np.stack(nod(origin, eyes, look)))
 
 
 def nod(
@@ -173,23 +177,24 @@ def nod(
     return np.sqrt(np.clip(1.0 - sin_a**2, 1e-6, 1.0)), sin_a
 
 
-def face_height(pose: HeadPose, look: tuple[float, float, float] = LOOK) -> np.ndarray:
+def face_height(pose: HeadPose) -> np.ndarray:
     """(N,) metres: each face's eye-to-mouth length H from its IPD range R and its normalised
-    ``height`` h, for a viewer facing ``look``: the mouth, H cos a across the line of sight
-    and H sin a nearer than the eyes (:func:`nod`), is seen at h = H cos a / (R - H sin a),
-    so H = h R / (cos a + h sin a). Meaningful where the read yaw is small (:data:`FRONTAL`)."""
-    cos_a, sin_a = nod(pose.origin, pose.eyes, look)
+    ``height`` h, for a viewer facing the pose's ``look``: the mouth, H cos a across the line
+    of sight and H sin a nearer than the eyes (``pose.nod``), is seen at
+    h = H cos a / (R - H sin a), so H = h R / (cos a + h sin a). Meaningful where the read
+    yaw is small (:data:`FRONTAL`)."""
+    cos_a, sin_a = pose.nod
     return pose.height * pose.range / (cos_a + pose.height * sin_a)
 
 
-def _smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+def smoothstep(x: np.ndarray | float, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:
+    """0 at ``x`` <= ``lo``, 1 at ``x`` >= ``hi``, 3 t^2 - 2 t^3 of t = (x - lo) / (hi - lo)
+    between (a ramp with flat ends)."""
     t = np.clip((np.asarray(x, np.float64) - lo) / (hi - lo), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 
-def ranged_eyes(
-    pose: HeadPose, height_m: float, look: tuple[float, float, float] = LOOK
-) -> tuple[np.ndarray, np.ndarray]:
+def ranged_eyes(pose: HeadPose, height_m: float) -> tuple[np.ndarray, np.ndarray]:
     """The faces ranged with one viewer's face height, ``height_m`` metres (measured by
     :func:`face_height`).
 
@@ -206,11 +211,11 @@ def ranged_eyes(
     ok = np.isfinite(h) & (h > 0)
     rng = pose.range.copy()
     nearer = np.full(len(rng), np.nan)
-    cos_a, sin_a = nod(pose.origin, pose.eyes[ok], look)
+    cos_a, sin_a = pose.nod[:, ok]
     by_height = height_m * (cos_a / h[ok] + sin_a)  # face_height solved for the range
     nearer[ok] = 1.0 - by_height / rng[ok]
-    w = _smoothstep(nearer[ok], NEARER_FROM, NEARER_TO)
-    w *= _smoothstep(np.abs(pose.yaw[ok]), TURN_FROM, TURN_TO)
+    w = smoothstep(nearer[ok], NEARER_FROM, NEARER_TO)
+    w *= smoothstep(np.abs(pose.yaw[ok]), TURN_FROM, TURN_TO)
     rng[ok] = (1.0 - w) * rng[ok] + w * by_height
     return pose.origin + pose.rays * rng[:, None], nearer
 

@@ -10,11 +10,12 @@ than ``gate`` metres is not a match; an unmatched eye starts a track (a viewer e
 track not seen for ``hold`` seconds ends (a viewer leaving).
 
 Given the faces' landmark readings (:class:`~viewcomp.rt.track.anatomy.HeadPose`), each track
-also learns its viewer's face height (eyes to mouth, metres) from the faces read frontal (the
-mean of the last ``HEIGHT_FRAMES``; a face the height already ranges nearer is not taken: it is
-turned more than its nose says), and a face matched to it is ranged with that height where the
-height says it is nearer (:func:`~viewcomp.rt.track.anatomy.ranged_eyes`): the assignment
-compares each face, ranged with each track's own height, to that track's prediction.
+also learns its viewer's face height (eyes to mouth, metres) from the faces read frontal (a
+running mean over about ``HEIGHT_FRAMES`` of them; a face the height already ranges nearer is
+not taken: it is turned more than its nose says), and a face matched to it is ranged with
+that height where the height says it is nearer
+(:func:`~viewcomp.rt.track.anatomy.ranged_eyes`): the assignment compares each face, ranged
+with each track's own height, to that track's prediction.
 
 What is published (:meth:`EyeTracker.update`):
 
@@ -45,10 +46,13 @@ from viewcomp.rt.track.anatomy import (
     HeadPose,
     face_height,
     ranged_eyes,
+    smoothstep,
 )
 from viewcomp.rt.track.filter import OneEuroFilter
 
-HEIGHT_FRAMES = 30  # a viewer's face height is the mean of its last this many frontal frames
+# A viewer's face height is the mean of its first HEIGHT_FRAMES frontal frames, then an
+# exponential mean that gives each new one that weight (1 / HEIGHT_FRAMES).
+HEIGHT_FRAMES = 30
 
 
 @dataclass
@@ -102,18 +106,13 @@ class Track:
         odd = not -NEARER_TO < nearer < NEARER_FROM if np.isfinite(nearer) else False
         if abs(yaw) < FRONTAL and not odd and np.isfinite(height) and height > 0:
             self.frontal = min(self.frontal + 1, HEIGHT_FRAMES)
-            h = self.face_height if self.frontal > 1 else height
+            h = height if self.frontal == 1 else self.face_height
             self.face_height = h + (height - h) / self.frontal
 
     def predict(self, t: float, horizon: float = 0.5) -> np.ndarray:
         """(3,) the eye expected at time t: the last eye moved on by the velocity for at
         most ``horizon`` seconds (a held viewer is not extrapolated far)."""
         return self.eye + self.velocity * min(max(t - self.seen, 0.0), horizon)
-
-
-def _smoothstep(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * (3.0 - 2.0 * s)
 
 
 @dataclass
@@ -211,7 +210,7 @@ class EyeTracker:
         since = t - self._lost_at
         if since <= c.hold:
             return self._lost_eye.copy()
-        k = 1.0 if c.ease <= 0 else _smoothstep((since - c.hold) / c.ease)
+        k = 1.0 if c.ease <= 0 else float(smoothstep((since - c.hold) / c.ease))
         return (1.0 - k) * self._lost_eye + k * default
 
     def update(
