@@ -17,7 +17,9 @@ landmarks, the filter) on a :class:`TrackerThread` -> the player's input hub -> 
 eye smoothing off) whose ``on_frame`` sees the eye each frame is drawn with. Latency: the
 presentation time of the first frame drawn with an eye minus the capture time of the camera
 frame it came from (the frame's index is written into its corner pixels). ``appear``: the
-first eye of each new face; ``all``: every published eye. One process spins on a core for
+first eye of each new face, from the frame it came from; ``entry``: the same eye from the
+first frame the face was in (what a viewer walking in waits: the frames where the face was
+not yet found count too); ``all``: every published eye. One process spins on a core for
 the whole run. On a shared machine these vary with whoever else runs: compare rounds of one
 run, never against a fixed number. Run from the repository root::
 
@@ -123,6 +125,13 @@ def simulated_source(capture: SimulatedCapture) -> FrameSource:
     return src
 
 
+def placements(appear: int) -> list[tuple[float, float]]:
+    """(angle degrees, distance m) of each face, spread over 60-120 degrees and 1-3 m."""
+    return [
+        (60.0 + 60.0 * ((k * 0.37) % 1.0), 1.0 + 2.0 * ((k * 0.61) % 1.0)) for k in range(appear)
+    ]
+
+
 def scene(appear: int, gap: float, stay: float) -> tuple[list[np.ndarray], list[int]]:
     """The frames' base images and the index of each face's first frame."""
     dev = walk_camera()
@@ -131,8 +140,7 @@ def scene(appear: int, gap: float, stay: float) -> tuple[list[np.ndarray], list[
     empty = render_frame(dev, np.zeros((0, 3)), back, rng)
     plan: list[np.ndarray] = []
     firsts = []
-    for k in range(appear):
-        angle, dist = 60.0 + 60.0 * ((k * 0.37) % 1.0), 1.0 + 2.0 * ((k * 0.61) % 1.0)
+    for angle, dist in placements(appear):
         face = render_frame(dev, eye_from_angle(angle, dist, 0.15)[None], back, rng)
         plan += [empty] * round(gap * FPS)
         firsts.append(len(plan))
@@ -161,12 +169,16 @@ def _stats(ms: list[float]) -> dict[str, float | int]:
     }
 
 
-def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Path) -> dict:
+def one_round(
+    plan: list[np.ndarray], firsts: list[int], stay: int, buffers: int, clip: Path
+) -> dict:
+    """One run over the scene; ``stay``: the frames each face stays."""
     cal = small_calibration(64, 32, screen="magenta")
     cal = replace(cal, rig=replace(cal.rig, tracker=walk_camera()))
     capture = SimulatedCapture(plan, FPS, buffers)
     pipeline = Pipeline(simulated_source(capture), walk_camera(), default_options(cal.rig))
-    published: list[tuple[int, float, np.ndarray]] = []  # frame index, done, eye
+    # frame index, done, eye, whether that frame's search found a face
+    published: list[tuple[int, float, np.ndarray, bool]] = []
     step, step_ms = pipeline.step, []
 
     def recorded(frame):  # type: ignore[no-untyped-def]
@@ -174,7 +186,8 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
         res = step(frame)
         step_ms.append(1e3 * (time.perf_counter() - t0))
         if res.sent and len(res.eyes):
-            published.append((index_of(frame.image), res.done, np.round(res.eyes[0], 4)))
+            eye = np.round(res.eyes[0], 4)
+            published.append((index_of(frame.image), res.done, eye, len(res.raw) > 0))
         return res
 
     pipeline.step = recorded  # type: ignore[method-assign]
@@ -204,23 +217,31 @@ def one_round(plan: list[np.ndarray], firsts: list[int], buffers: int, clip: Pat
     times = np.array([t for t, _ in drawn])
     eyes = np.array([e for _, e in drawn])
     lat, track_ms, appear = [], [], []
+    entry: dict[int, float] = {}  # face's first frame -> ms from its capture to its first eye
+    first_eye: dict[int, list[float]] = {}
     first_set = set(firsts)
-    seen_faces: set[int] = set()
-    for index, done, eye in published:
+    for index, done, eye, found in published:
         hit = np.flatnonzero((times >= done) & np.all(np.abs(eyes - eye) < 2e-4, axis=1))
         if not len(hit):
             continue  # replaced by a newer eye before a frame was drawn
         ms = 1e3 * (times[hit[0]] - capture.capture_time(index))
         lat.append(ms)
         track_ms.append(1e3 * (done - capture.capture_time(index)))
+        # A face's first eye: the first drawn eye of a frame where the face was found (with
+        # nobody found the tracker holds, then eases its last eye home: those eyes are not
+        # the newcomer's).
         face = max((f for f in firsts if f <= index), default=-1)
-        if face in first_set and face not in seen_faces and index < face + round(FPS):
-            seen_faces.add(face)
+        if found and face in first_set and face not in entry and index < face + stay:
             appear.append(ms)
+            entry[face] = 1e3 * (times[hit[0]] - capture.capture_time(face))
+            first_eye[face] = [float(v) for v in eye]
     n = pipeline.stats.frames
     return {
         "appear": _stats(appear),
         "appear_ms": [round(v, 1) for v in appear],
+        "entry": _stats(list(entry.values())),
+        "entry_ms": [round(entry[f], 1) if f in entry else None for f in firsts],
+        "first_eye_m": [first_eye.get(f) for f in firsts],
         "all": _stats(lat),
         "capture_to_published": _stats(track_ms),
         "faces": len(firsts),
@@ -262,7 +283,10 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory() as tmp, Xvfb((640, 360)):
             clip = Path(tmp) / "clip.mp4"
             make_test_video(str(clip), 128, 64, seconds=4.0, rate=30, audio=False)
-            rounds = [one_round(plan, firsts, args.buffers, clip) for _ in range(args.rounds)]
+            rounds = [
+                one_round(plan, firsts, round(args.stay * FPS), args.buffers, clip)
+                for _ in range(args.rounds)
+            ]
     finally:
         stop.set()
         if spinner.is_alive():
@@ -275,7 +299,12 @@ def main(argv: list[str] | None = None) -> int:
         "core_busy": not args.no_spin,
         "camera": {"resolution": [1280, 720], "fps": FPS, "buffers": args.buffers},
         "cv_threads": args.cv_threads,
-        "scene": {"appear": args.appear, "gap_s": args.gap, "stay_s": args.stay},
+        "scene": {
+            "appear": args.appear,
+            "gap_s": args.gap,
+            "stay_s": args.stay,
+            "faces_angle_deg_distance_m": placements(args.appear),
+        },
         "rounds": rounds,
     }
     print(json.dumps(result, indent=1))
