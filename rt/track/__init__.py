@@ -3,7 +3,7 @@
 - ``source``: frame sources: a camera device, a video file, an image sequence, memory.
 - ``yunet``: faces and their landmarks (YuNet, the model shipped in ``models/``, checksummed);
   tracked faces followed in crops.
-- ``live_faces``: YuNet for a live camera: a cheap search per frame, the full one on a worker.
+- ``live_faces``: YuNet for a live camera: each frame at half resolution and one tile at full.
 - ``boxes``: how much two face boxes overlap.
 - ``anatomy``: a viewer's eye from the landmarks: distance from the interpupillary distance,
   corrected for the head's turn; a viewer's face height and the range it gives a turned face.

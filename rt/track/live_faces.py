@@ -2,25 +2,30 @@
 
 Searching a whole 1280x720 frame at full resolution is the tracker's largest cost (about
 25-30 ms on an idle core, several times that on a busy machine); done on every frame, each
-frame waits for it. :class:`LiveFaces` splits the work:
+frame waits for it. :class:`LiveFaces` spreads that search over frames:
 
 - every frame is searched at ``scale`` (0.5: a quarter of the pixels), which finds every face
   up to about 2 m from a 90-degree 720p webcam at once; the faces found are refined in a crop
   at full resolution as small faces always are (:meth:`YuNetDetector.detect`);
-- the whole frame at full resolution is searched on a worker thread, one search at a time,
-  each on the newest frame: it finds the far faces the half-resolution search misses;
+- one of ``TILES`` overlapping tiles of the frame is also searched at full resolution, the
+  next tile the next time (:func:`tiles`): every frame while nobody is in view, every
+  ``TRACKING_EVERY``-th frame while faces are followed. A far newcomer the half-resolution
+  search misses is found within one round of the tiles (4 frames into an empty room), and no
+  frame pays for the whole frame at full resolution;
 - a face, once found (by either search), is followed frame by frame in a crop around where
-  it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the half-resolution
-  search misses it, until a crop no longer finds it.
+  it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the searches miss it,
+  until a crop no longer finds it.
 
-A far newcomer therefore appears one full search later than a near one. Files processed as
-fast as possible keep the whole-frame search on every frame (reproducible output): see
-``background_search`` of :class:`viewcomp.rt.track.run.TrackOptions`.
+All of it runs in the caller's thread: the work per frame is bounded, and nothing competes
+with the frame's own search for the cores (a worker thread searching whole frames did, and
+delayed every near newcomer). Files processed as fast as possible keep the whole-frame
+search on every frame (reproducible output): see ``background_search`` of
+:class:`viewcomp.rt.track.run.TrackOptions`.
 """
 
 from __future__ import annotations
 
-from concurrent.futures import Future, ThreadPoolExecutor
+import math
 
 import cv2
 import numpy as np
@@ -28,45 +33,59 @@ import numpy as np
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 
 SCALE = 0.5  # the per-frame search's resize factor
+TILES = (2, 2)  # the full-resolution search's tiles across and down, one searched per frame
+# Tiles overlap by this much (pixels): any face box up to this size lies wholly in one tile;
+# the half-resolution search finds the larger (nearer) ones.
+OVERLAP = 96
+# While faces are followed, a tile is searched every this many frames (each followed face
+# costs a full-resolution crop per frame already); with nobody in view, every frame.
+TRACKING_EVERY = 3
+
+
+def tiles(width: int, height: int, across: int, down: int, overlap: int) -> list[tuple[int, ...]]:
+    """(x0, y0, w, h) of ``across`` x ``down`` tiles of one size covering a width x height
+    frame, neighbours overlapping by at least ``overlap`` pixels, row by row."""
+    tw = min(width, math.ceil(width / across) + overlap)
+    th = min(height, math.ceil(height / down) + overlap)
+    xs = np.linspace(0, width - tw, across).round().astype(int) if across > 1 else [0]
+    ys = np.linspace(0, height - th, down).round().astype(int) if down > 1 else [0]
+    return [(int(x), int(y), tw, th) for y in ys for x in xs]
 
 
 class LiveFaces:
     """The faces of each live frame (the module's description); ``detect`` as
-    :meth:`YuNetDetector.detect`. Call :meth:`close` to end the worker thread."""
+    :meth:`YuNetDetector.detect`."""
 
     def __init__(self, config: YuNetConfig | None = None, scale: float = SCALE) -> None:
         self.config = config or YuNetConfig()
         self.scale = scale
-        self.frame_detector = YuNetDetector(self.config)  # this thread's
-        self.full_detector = YuNetDetector(self.config)  # the worker's (not thread-safe)
+        self.frame_detector = YuNetDetector(self.config)
+        # a network of its own: the tiles keep one input size, the half frame another
+        self.tile_detector = YuNetDetector(self.config)
         self.path = self.frame_detector.path
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="viewcomp-faces")
-        self._pending: Future[Faces] | None = None
-        self._followed = np.zeros((0, 4))  # boxes of far faces followed in crops
-        self.full_searches = 0
+        self._followed = np.zeros((0, 4))  # boxes of the last frame's faces
+        self.tiles_searched = 0
+        self._frames = 0
 
     def detect(self, image: np.ndarray, follow: np.ndarray | None = None) -> Faces:
-        """The faces in ``image`` ((h, w, 3) uint8 BGR or (h, w) grey), the near ones first,
-        then the followed far ones; ``follow`` (K, 4): boxes of faces tracked so far, followed
-        as the last frame's faces are."""
+        """The faces in ``image`` ((h, w, 3) uint8 BGR or (h, w) grey): the half-resolution
+        search's, then the tile's new ones, then the followed ones; ``follow`` (K, 4): boxes
+        of faces tracked so far, followed as the last frame's faces are."""
         if image.ndim == 2:  # grey: the crops are searched as colour frames are
             image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         faces = self.frame_detector.detect(image, self.scale)
-        if self._pending is not None and self._pending.done():
-            found = self._pending.result()
-            self._pending = None
-            self._followed = np.concatenate([self._followed, found.boxes])
-        if self._pending is None:
-            self._pending = self._pool.submit(self.full_detector.detect, image)
-            self.full_searches += 1
+        self._frames += 1
+        if not len(self._followed) or self._frames % TRACKING_EVERY == 0:
+            h, w = image.shape[:2]
+            grid = tiles(w, h, *TILES, OVERLAP)
+            region = grid[self.tiles_searched % len(grid)]
+            found = self.tile_detector.search_region(image, region, faces.boxes)
+            faces = faces.extended(found.rows())
+            self.tiles_searched += 1
         if follow is not None:
             self._followed = np.concatenate([self._followed, np.reshape(follow, (-1, 4))])
         more = self.frame_detector.follow(image, self._followed, faces.boxes)
-        # next frame, every face of this one is followed in a crop if its search misses it
+        # next frame, every face of this one is followed in a crop if the searches miss it
         # (a viewer walking away beyond the half-resolution search's reach)
         self._followed = np.concatenate([faces.boxes, more[:, :4]])
         return faces.extended(more)
-
-    def close(self) -> None:
-        """End the worker thread (after the search in progress)."""
-        self._pool.shutdown(wait=True, cancel_futures=True)

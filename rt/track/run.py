@@ -51,8 +51,9 @@ class TrackOptions:
     rather than by the cascade's box alone; ``background_search``: run the periodic
     full-frame search on a worker thread (None: for a live camera and ``realtime``; a file
     processed as fast as possible stays on one thread, so its output is reproducible); with
-    YuNet, a live search also looks at each frame at half resolution and follows the faces
-    it found in crops (:mod:`viewcomp.rt.track.live_faces`).
+    YuNet, a live search instead looks at each frame at half resolution and at one tile of
+    it at full resolution, and follows the faces it found in crops
+    (:mod:`viewcomp.rt.track.live_faces`).
     """
 
     detector_kind: str = "yunet"
@@ -125,8 +126,9 @@ class Pipeline:
         self._pool: ThreadPoolExecutor | None = None
         self._pending: Future[np.ndarray] | None = None
         self.yunet: YuNetDetector | LiveFaces | None = None
-        # Live: the full-frame search (newcomers) runs on a worker thread, so no frame waits
-        # for it; a file processed as fast as possible stays on one thread (reproducible).
+        # Live: no frame waits for a whole-frame search at full resolution (the cascade's runs
+        # on a worker thread, YuNet's is spread over the frames in tiles); a file processed as
+        # fast as possible is searched whole, frame by frame (reproducible).
         background = options.background_search
         if background is None:
             background = bool(getattr(source, "live", False)) or options.realtime
@@ -262,8 +264,6 @@ class Pipeline:
         """Release the source, the search thread and the publishers."""
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
-        if isinstance(self.yunet, LiveFaces):
-            self.yunet.close()
         self.source.close()
         for p in self.publishers:
             p.close()

@@ -68,6 +68,12 @@ class Faces:
     def empty() -> Faces:
         return Faces(np.zeros((0, 4)), np.zeros((0, 5, 2)), np.zeros(0))
 
+    def rows(self) -> np.ndarray:
+        """(N, 15): box, landmarks and score of each face (YuNet's row layout)."""
+        return np.concatenate(
+            [self.boxes, self.landmarks.reshape(-1, 10), self.scores[:, None]], axis=1
+        )
+
     def extended(self, rows: np.ndarray) -> Faces:
         """These faces followed by ``rows`` (M, 15): box, landmarks and score each."""
         if len(rows) == 0:
@@ -188,11 +194,31 @@ class YuNetDetector:
         more = self.follow(frame, follow, faces.boxes)
         return faces.extended(more)
 
-    def _search(self, frame: np.ndarray, scale: float) -> Faces:
-        """The whole-frame search of :meth:`detect` (BGR ``frame``)."""
-        small = frame
+    def search_region(
+        self, frame: np.ndarray, region: tuple[int, int, int, int], known: np.ndarray
+    ) -> Faces:
+        """The faces in ``region`` (x0, y0, width, height pixels) of ``frame`` ((h, w, 3)
+        uint8 BGR) at full resolution, in the frame's pixels, but those overlapping a box of
+        ``known`` ((K, 4): faces found already) by more than 0.3 IoU; small faces are refined
+        in the whole frame, so a face near the region's edge keeps its context. Regions of
+        one size keep the network's input size (changing it costs a set-up)."""
+        return self._search(frame, 1.0, region, known)
+
+    def _search(
+        self,
+        frame: np.ndarray,
+        scale: float,
+        region: tuple[int, int, int, int] | None = None,
+        known: np.ndarray | None = None,
+    ) -> Faces:
+        """The search of :meth:`detect` (BGR ``frame``; the whole frame, or ``region``
+        without the faces of ``known``, before any is refined)."""
+        small, x0, y0 = frame, 0, 0
+        if region is not None:
+            x0, y0, rw, rh = region
+            small = frame[y0 : y0 + rh, x0 : x0 + rw]
         if scale < 1.0:
-            small = cv2.resize(frame, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+            small = cv2.resize(small, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
         h, w = small.shape[:2]
         if (w, h) != self._size:
             self.net.setInputSize((w, h))
@@ -206,6 +232,10 @@ class YuNetDetector:
             xy = [0, 1, *range(4, 14)]
             f[:, xy] = (f[:, xy] + 0.5) / scale - 0.5
             f[:, 2:4] /= scale
+        f[:, [0, *range(4, 14, 2)]] += x0  # to the frame's pixels
+        f[:, [1, *range(5, 14, 2)]] += y0
+        if known is not None and len(known):
+            f = f[[float(np.max(iou(row[:4], known))) <= 0.3 for row in f]].reshape(-1, 15)
         for row in f:  # small faces: landmarks again from an enlarged crop
             if np.linalg.norm(row[6:8] - row[4:6]) < self.config.refine_px:
                 better = self.refine(frame, row[:4].copy())
