@@ -169,6 +169,48 @@ def _stats(ms: list[float]) -> dict[str, float | int]:
     }
 
 
+def latencies(
+    published: list[tuple[int, float, np.ndarray, bool]],
+    drawn: list[tuple[float, np.ndarray]],
+    capture: SimulatedCapture,
+    firsts: list[int],
+    stay: int,
+) -> dict:
+    """The round's latencies: each published eye (frame index, when published, eye, whether
+    its frame found a face) matched to the first frame ``drawn`` with it (presentation time,
+    eye); ``firsts``: each face's first frame, ``stay``: the frames it stays."""
+    times = np.array([t for t, _ in drawn])
+    eyes = np.array([e for _, e in drawn])
+    lat, track_ms, appear = [], [], []
+    entry: dict[int, float] = {}  # face's first frame -> ms from its capture to its first eye
+    first_eye: dict[int, list[float]] = {}
+    first_set = set(firsts)
+    for index, done, eye, found in published:
+        hit = np.flatnonzero((times >= done) & np.all(np.abs(eyes - eye) < 2e-4, axis=1))
+        if not len(hit):
+            continue  # replaced by a newer eye before a frame was drawn
+        ms = 1e3 * (times[hit[0]] - capture.capture_time(index))
+        lat.append(ms)
+        track_ms.append(1e3 * (done - capture.capture_time(index)))
+        # A face's first eye: the first drawn eye of a frame where the face was found (with
+        # nobody found the tracker holds, then eases its last eye home: those eyes are not
+        # the newcomer's).
+        face = max((f for f in firsts if f <= index), default=-1)
+        if found and face in first_set and face not in entry and index < face + stay:
+            appear.append(ms)
+            entry[face] = 1e3 * (times[hit[0]] - capture.capture_time(face))
+            first_eye[face] = [float(v) for v in eye]
+    return {
+        "appear": _stats(appear),
+        "appear_ms": [round(v, 1) for v in appear],
+        "entry": _stats(list(entry.values())),
+        "entry_ms": [round(entry[f], 1) if f in entry else None for f in firsts],
+        "first_eye_m": [first_eye.get(f) for f in firsts],
+        "all": _stats(lat),
+        "capture_to_published": _stats(track_ms),
+    }
+
+
 def one_round(
     plan: list[np.ndarray], firsts: list[int], stay: int, buffers: int, clip: Path
 ) -> dict:
@@ -214,36 +256,9 @@ def one_round(
     opts = PlayerOptions(windowed=True, audio=False, stdin_fd=None, loop=True, eye_tau=0.0,
                          max_seconds=seconds, inputs=(tracker,))  # fmt: skip
     Player(cal, [clip], opts, on_frame=on_frame).run()
-    times = np.array([t for t, _ in drawn])
-    eyes = np.array([e for _, e in drawn])
-    lat, track_ms, appear = [], [], []
-    entry: dict[int, float] = {}  # face's first frame -> ms from its capture to its first eye
-    first_eye: dict[int, list[float]] = {}
-    first_set = set(firsts)
-    for index, done, eye, found in published:
-        hit = np.flatnonzero((times >= done) & np.all(np.abs(eyes - eye) < 2e-4, axis=1))
-        if not len(hit):
-            continue  # replaced by a newer eye before a frame was drawn
-        ms = 1e3 * (times[hit[0]] - capture.capture_time(index))
-        lat.append(ms)
-        track_ms.append(1e3 * (done - capture.capture_time(index)))
-        # A face's first eye: the first drawn eye of a frame where the face was found (with
-        # nobody found the tracker holds, then eases its last eye home: those eyes are not
-        # the newcomer's).
-        face = max((f for f in firsts if f <= index), default=-1)
-        if found and face in first_set and face not in entry and index < face + stay:
-            appear.append(ms)
-            entry[face] = 1e3 * (times[hit[0]] - capture.capture_time(face))
-            first_eye[face] = [float(v) for v in eye]
     n = pipeline.stats.frames
     return {
-        "appear": _stats(appear),
-        "appear_ms": [round(v, 1) for v in appear],
-        "entry": _stats(list(entry.values())),
-        "entry_ms": [round(entry[f], 1) if f in entry else None for f in firsts],
-        "first_eye_m": [first_eye.get(f) for f in firsts],
-        "all": _stats(lat),
-        "capture_to_published": _stats(track_ms),
+        **latencies(published, drawn, capture, firsts, stay),
         "faces": len(firsts),
         "published": len(published),
         "frames_read": pipeline.stats.frames,

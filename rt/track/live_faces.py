@@ -42,7 +42,9 @@ OVERLAP = 96
 TRACKING_EVERY = 3
 
 
-def tiles(width: int, height: int, across: int, down: int, overlap: int) -> list[tuple[int, ...]]:
+def tiles(
+    width: int, height: int, across: int, down: int, overlap: int
+) -> list[tuple[int, int, int, int]]:
     """(x0, y0, w, h) of ``across`` x ``down`` tiles of one size covering a width x height
     frame, neighbours overlapping by at least ``overlap`` pixels, row by row."""
     tw = min(width, math.ceil(width / across) + overlap)
