@@ -16,9 +16,10 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
   it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the searches miss it,
   until a crop no longer finds it.
 
-All of it runs in the caller's thread: the work per frame is bounded, and nothing competes
-with the frame's own search for the cores (a worker thread searching whole frames did, and
-delayed every near newcomer). Files processed as fast as possible keep the whole-frame
+All of it runs in the caller's thread and the work per frame is bounded. (A worker thread
+searching whole frames back to back took 200-400 ms a search with one of two cores busy, so
+a far newcomer waited 0.4-0.8 s, and it competed with every frame's own search; see
+docs/BENCHMARKS.md.) Files processed as fast as possible keep the whole-frame
 search on every frame (reproducible output): see ``background_search`` of
 :class:`viewcomp.rt.track.run.TrackOptions`.
 """
