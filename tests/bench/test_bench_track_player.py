@@ -1,0 +1,48 @@
+"""bench/bench_track_player.py's reading of a round: a newcomer's first eye is one its frame
+found, timed from the frame the face entered (entry) and from the frame the eye came from
+(appear); eyes the tracker publishes while nobody is found are not the newcomer's."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location(
+        "bench_track_player", ROOT / "bench/bench_track_player.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_eased_eye_is_not_the_newcomers_and_entry_counts_from_the_faces_first_frame():
+    bench = _bench()
+    fps = bench.FPS
+    capture = bench.SimulatedCapture([np.zeros((2, 2, 3), np.uint8)] * 60, fps, 4)
+    capture.t0 = 0.0
+    eased, face = np.array([0.1, 0.05, 0.6]), np.array([0.3, 0.15, 2.2])
+    first, found_at = 10, 14  # the face enters at frame 10; its search finds it at frame 14
+    published = [
+        (first, 0.40, eased, False),  # the tracker easing home: nobody found in frame 10
+        (found_at, 0.55, face, True),
+        (found_at + 1, 0.58, face + 0.01, True),
+    ]
+    drawn = [(0.42, eased), (0.50, eased), (0.60, face), (0.62, face + 0.01)]
+    got = bench.latencies(published, drawn, capture, [first], stay=30)
+    assert got["entry_ms"] == [pytest.approx(1e3 * (0.60 - first / fps), abs=0.1)]
+    assert got["appear_ms"] == [pytest.approx(1e3 * (0.60 - found_at / fps), abs=0.1)]
+    assert got["first_eye_m"] == [pytest.approx(list(face))]
+    assert got["all"]["n"] == 3  # every drawn eye, the eased one too
+    # a face never found has no first eye, and is not counted as one
+    none = bench.latencies(published[:1], drawn[:2], capture, [first], stay=30)
+    assert none["entry_ms"] == [None] and none["entry"] == {"n": 0}
