@@ -4,29 +4,14 @@ found, timed from the frame the face entered (entry) and from the frame the eye 
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _bench():
-    spec = importlib.util.spec_from_file_location(
-        "bench_track_player", ROOT / "bench/bench_track_player.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+from tests.support.scripts import load_script
 
 
 def test_the_eased_eye_is_not_the_newcomers_and_entry_counts_from_the_faces_first_frame():
-    bench = _bench()
+    bench = load_script("bench/bench_track_player.py")
     fps = bench.FPS
     capture = bench.SimulatedCapture([np.zeros((2, 2, 3), np.uint8)] * 60, fps, 4)
     capture.t0 = 0.0

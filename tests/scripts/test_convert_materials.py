@@ -3,28 +3,19 @@ measured-material .npz that `simulate --material` reads."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.support.scripts import load_script
 from viewcomp.calib.sim.materials import load_material
 
-ROOT = Path(__file__).resolve().parents[2]
 NAMES = ("W1", "b1", "W2", "b2", "W3", "b3")
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "convert_neural_brdf", ROOT / "scripts/convert_neural_brdf.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("scripts/convert_neural_brdf.py")
 
 
 def _keras_h5(path: Path, arrays: dict[str, np.ndarray], whole_model: bool) -> None:

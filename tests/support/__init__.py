@@ -4,4 +4,5 @@
 - ``calibrations``: small real calibrations, simulated (a second or so).
 - ``fuzzing``: fuzzed live input for a running player: valid and malformed OSC and stdin.
 - ``materials``: the names of the measured materials the tests run on.
+- ``scripts``: a repository script (scripts/, bench/) loaded as a module.
 """
