@@ -69,6 +69,7 @@ class LiveFaces:
         self._followed = np.zeros((0, 4))  # boxes of the last frame's faces
         self.tiles_searched = 0
         self._frames = 0
+        self._grid: tuple[tuple[int, int], list[tuple[int, int, int, int]]] = ((0, 0), [])
 
     def detect(self, image: np.ndarray, follow: np.ndarray | None = None) -> Faces:
         """The faces in ``image`` ((h, w, 3) uint8 BGR or (h, w) grey): the half-resolution
@@ -80,7 +81,9 @@ class LiveFaces:
         self._frames += 1
         if not len(self._followed) or self._frames % TRACKING_EVERY == 0:
             h, w = image.shape[:2]
-            grid = tiles(w, h, *TILES, OVERLAP)
+            if self._grid[0] != (w, h):  # the frame's size: the tiles are computed once
+                self._grid = ((w, h), tiles(w, h, *TILES, OVERLAP))
+            grid = self._grid[1]
             region = grid[self.tiles_searched % len(grid)]
             found = self.tile_detector.search_region(image, region, faces.boxes)
             faces = faces.extended(found.rows())
