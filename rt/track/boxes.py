@@ -6,7 +6,8 @@ import numpy as np
 
 
 def iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Intersection over union (0..1) of ``box`` (4,) with each of ``boxes`` (N, 4), x y w h."""
+    """Intersection over union (0..1) of ``box`` (4,) with each of ``boxes`` (N, 4), x y w h
+    (0 where both are empty)."""
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     ix = np.clip(
         np.minimum(box[0] + box[2], b[:, 0] + b[:, 2]) - np.maximum(box[0], b[:, 0]), 0, None
@@ -15,4 +16,5 @@ def iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         np.minimum(box[1] + box[3], b[:, 1] + b[:, 3]) - np.maximum(box[1], b[:, 1]), 0, None
     )
     inter = ix * iy
-    return inter / (box[2] * box[3] + b[:, 2] * b[:, 3] - inter)
+    union = box[2] * box[3] + b[:, 2] * b[:, 3] - inter
+    return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0)  # empty: 0
