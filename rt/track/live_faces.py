@@ -6,7 +6,8 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
 
 - every frame is searched at ``scale`` (0.5: a quarter of the pixels), which finds every face
   up to about 2 m from a 90-degree 720p webcam at once; the faces found are refined in a crop
-  at full resolution as small faces always are (:meth:`YuNetDetector.detect`);
+  at full resolution as small faces always are (:meth:`YuNetDetector.detect`), but for
+  newcomers (below);
 - one of ``TILES`` overlapping tiles of the frame is also searched at full resolution, the
   next tile the next time (:func:`tiles`): every frame while nobody is in view, every
   ``TRACKING_EVERY``-th frame while faces are followed. A far newcomer the half-resolution
@@ -14,7 +15,14 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
   frame pays for the whole frame at full resolution;
 - a face, once found (by either search), is followed frame by frame in a crop around where
   it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the searches miss it,
-  until a crop no longer finds it.
+  until a crop no longer finds it;
+- a newcomer's first reading is the search's own: its refinement crop (about 0.7 megapixels,
+  more than the half frame and a tile together) waits for its second frame, and a frame that
+  found a newcomer leaves its tile to the next one, so the first eye reaches the player about
+  a frame's work sooner. That first reading is marked ``coarse`` (the tracker takes no face
+  height from it and starts afresh from the refined one): from the half frame, its range is
+  a few times less precise (0.8-2 m, single frames: within 10 % in about 70 % of faces, 95-98
+  % refined; see docs/BENCHMARKS.md).
 
 All of it runs in the caller's thread and the work per frame is bounded. (A worker thread
 searching whole frames back to back took 200-400 ms a search with one of two cores busy, so
@@ -31,6 +39,7 @@ import math
 import cv2
 import numpy as np
 
+from viewcomp.rt.track.boxes import iou
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 
 SCALE = 0.5  # the per-frame search's resize factor
@@ -74,24 +83,30 @@ class LiveFaces:
     def detect(self, image: np.ndarray, follow: np.ndarray | None = None) -> Faces:
         """The faces in ``image`` ((h, w, 3) uint8 BGR or (h, w) grey): the half-resolution
         search's, then the tile's new ones, then the followed ones; ``follow`` (K, 4): boxes
-        of faces tracked so far, followed as the last frame's faces are."""
+        of faces tracked so far, followed as the last frame's faces are. A newcomer (a face
+        overlapping none of these boxes nor the last frame's faces by more than 0.3 IoU)
+        keeps the search's own landmarks (``Faces.coarse`` where it is small); a frame
+        that found one leaves its tile to the next frame."""
         if image.ndim == 2:  # grey: the crops are searched as colour frames are
             image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-        faces = self.frame_detector.detect(image, self.scale)
+        if follow is not None:
+            self._followed = np.concatenate([self._followed, np.reshape(follow, (-1, 4))])
+        known = self._followed
+        faces = self.frame_detector.detect(image, self.scale, refine_near=known)
         self._frames += 1
-        if not len(self._followed) or self._frames % TRACKING_EVERY == 0:
+        due = not len(known) or self._frames % TRACKING_EVERY == 0
+        newcomer = any(not len(known) or float(np.max(iou(b, known))) <= 0.3 for b in faces.boxes)
+        if due and not newcomer:
             h, w = image.shape[:2]
             if self._grid[0] != (w, h):  # the frame's size: the tiles are computed once
                 self._grid = ((w, h), tiles(w, h, *TILES, OVERLAP))
             grid = self._grid[1]
             region = grid[self.tiles_searched % len(grid)]
-            found = self.tile_detector.search_region(image, region, faces.boxes)
-            faces = faces.extended(found.rows())
+            found = self.tile_detector.search_region(image, region, faces.boxes, known)
+            faces = faces.extended(found)
             self.tiles_searched += 1
-        if follow is not None:
-            self._followed = np.concatenate([self._followed, np.reshape(follow, (-1, 4))])
-        more = self.frame_detector.follow(image, self._followed, faces.boxes)
+        more = Faces.from_rows(self.frame_detector.follow(image, known, faces.boxes))
         # next frame, every face of this one is followed in a crop if the searches miss it
         # (a viewer walking away beyond the half-resolution search's reach)
-        self._followed = np.concatenate([faces.boxes, more[:, :4]])
+        self._followed = np.concatenate([faces.boxes, more.boxes])
         return faces.extended(more)

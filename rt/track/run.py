@@ -199,17 +199,17 @@ class Pipeline:
             self._since_full = 0
         return hints, False
 
-    def _landmark_eyes(self, frame: Frame) -> tuple[HeadPose, np.ndarray]:
-        """YuNet: the landmarks' reading (eyes (N, 3) metres, :class:`HeadPose`) and the
-        boxes (N, 4) pixels of the faces between ``near`` / 1.5 and 1.5 ``far`` from the
-        camera."""
+    def _landmark_eyes(self, frame: Frame) -> tuple[HeadPose, np.ndarray, np.ndarray]:
+        """YuNet: the landmarks' reading (eyes (N, 3) metres, :class:`HeadPose`), the boxes
+        (N, 4) pixels and which readings are coarse ((N,) bool, ``Faces.coarse``) of the
+        faces between ``near`` / 1.5 and 1.5 ``far`` from the camera."""
         assert self.yunet is not None
         # the tracked faces are followed in crops where the frame's search misses them
         faces = self.yunet.detect(frame.image, follow=self.tracker.hints())
         o = self.options
         pose = head_pose(self.device, faces.landmarks, o.ipd, o.nose_depth)
         ok = (pose.range >= o.near / 1.5) & (pose.range <= o.far * 1.5)
-        return pose.take(ok), faces.boxes[ok]
+        return pose.take(ok), faces.boxes[ok], faces.coarse[ok]
 
     def _box_eyes(self, frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The cascade fallback: eyes (N, 3) from the boxes' size, the boxes as found and as
@@ -225,14 +225,15 @@ class Pipeline:
         """Detect, range, filter and publish one frame."""
         pose: HeadPose | None = None
         if self.yunet is not None:
-            pose, sized = self._landmark_eyes(frame)
+            pose, sized, coarse = self._landmark_eyes(frame)
             raw, boxes, gray = pose.eyes, sized, None
         else:
             raw, boxes, sized, gray = self._box_eyes(frame)
+            coarse = np.zeros(len(raw), bool)
         ok = (raw[:, 2] > 0.0) & np.all(np.abs(raw) <= EYE_LIMIT, axis=1)
-        raw, boxes, sized = raw[ok], boxes[ok], sized[ok]
+        raw, boxes, sized, coarse = raw[ok], boxes[ok], sized[ok], coarse[ok]
         pose = pose.take(ok) if pose is not None else None
-        eyes = self.tracker.update(raw, sized, frame.t, pose)
+        eyes = self.tracker.update(raw, sized, frame.t, pose, coarse)
         if self.options.templates and gray is not None:
             self._keep_templates(gray, boxes, frame.t)
         sent = False

@@ -48,6 +48,7 @@ from viewcomp.rt.track.anatomy import (
     ranged_eyes,
     smoothstep,
 )
+from viewcomp.rt.track.boxes import iou
 from viewcomp.rt.track.filter import OneEuroFilter
 
 # A viewer's face height is the mean of its first HEIGHT_FRAMES frontal frames, then an
@@ -83,7 +84,8 @@ class Track:
     the detection it was last given (its row in that frame's eyes), ``template`` whatever
     the caller keeps per viewer (the pipeline: its face template, or None); ``raw`` (3,)
     the eye it was last given, before the filter; ``face_height`` metres, the viewer's eyes
-    to mouth (NaN until a frontal face was seen), from ``frontal`` frames."""
+    to mouth (NaN until a frontal face was seen), from ``frontal`` frames; ``provisional``:
+    every reading so far was coarse (its first refined one starts the filter afresh)."""
 
     id: int
     filter: OneEuroFilter
@@ -96,6 +98,7 @@ class Track:
     raw: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     face_height: float = float("nan")
     frontal: int = 0
+    provisional: bool = False
 
     def measure(self, height: float, yaw: float, nearer: float = float("nan")) -> None:
         """Take one face's eye-to-mouth length (metres, :func:`face_height`) read at ``yaw``
@@ -145,17 +148,31 @@ class EyeTracker:
                     out[:, k], nearer[:, k] = ranged_eyes(pose, tr.face_height)
         return out, nearer
 
-    def _match(self, eyes: np.ndarray, boxes: np.ndarray, t: float, pose: HeadPose | None) -> None:
+    def _match(
+        self,
+        eyes: np.ndarray,
+        boxes: np.ndarray,
+        t: float,
+        pose: HeadPose | None,
+        coarse: np.ndarray,
+    ) -> None:
         from scipy.optimize import linear_sum_assignment
 
         c = self.config
         used_e: set[int] = set()
         heights = face_height(pose) if pose is not None else np.full(len(eyes), np.nan)
+        heights = np.where(coarse, np.nan, heights)  # a coarse reading teaches no height
         yaws = pose.yaw if pose is not None else np.zeros(len(eyes))
         if len(eyes) and self.tracks:
             pred = np.asarray([tr.predict(t) for tr in self.tracks])
             cand, nearer = self._candidates(eyes, pose)
             cost = np.linalg.norm(cand - pred[None, :, :], axis=2)  # (N, K)
+            # a provisional track's range is coarse, not its place in the picture: the face
+            # whose box overlaps its box is its own, wherever the refined range puts it
+            for k, tr in enumerate(self.tracks):
+                if tr.provisional and len(boxes):
+                    over = iou(tr.box, boxes)
+                    cost[:, k] = np.where(over > 0.3, (1.0 - over) * c.gate, cost[:, k])
             gated = np.where(cost <= c.gate, cost, 1e6)  # a pair beyond the gate is no match
             rows, cols = linear_sum_assignment(gated)
             for i, k in zip(rows.tolist(), cols.tolist(), strict=True):
@@ -163,14 +180,17 @@ class EyeTracker:
                     continue
                 used_e.add(i)
                 tr = self.tracks[k]
-                if t - tr.seen > c.hold:  # back after a gap: no smoothing from where it was
+                # back after a gap, or refined at last: no smoothing from where it was
+                restart = t - tr.seen > c.hold or (tr.provisional and not coarse[i])
+                if restart:
                     tr.filter.reset()
                     tr.velocity = np.zeros(3)
+                tr.provisional = tr.provisional and bool(coarse[i])
                 before, dt = tr.eye, t - tr.seen
                 tr.raw = cand[i, k].copy()
                 tr.eye = tr.filter(tr.raw, t)
                 tr.measure(float(heights[i]), float(yaws[i]), float(nearer[i, k]))
-                if 0.0 < dt <= c.hold:  # smoothed velocity of the filtered eye, m/s
+                if 0.0 < dt and not restart:  # smoothed velocity of the filtered eye, m/s
                     v = (tr.eye - before) / dt
                     tr.velocity = 0.5 * tr.velocity + 0.5 * v
                 tr.box = boxes[i].copy()
@@ -181,6 +201,7 @@ class EyeTracker:
                 f = OneEuroFilter(c.min_cutoff, c.beta, c.d_cutoff)
                 tr = Track(self._next_id, f, f(eyes[i], t), boxes[i].copy(), t, i)
                 tr.raw = eyes[i].copy()
+                tr.provisional = bool(coarse[i])
                 tr.measure(float(heights[i]), float(yaws[i]))
                 self.tracks.append(tr)
                 self._next_id += 1
@@ -214,7 +235,12 @@ class EyeTracker:
         return (1.0 - k) * self._lost_eye + k * default
 
     def update(
-        self, eyes: np.ndarray, boxes: np.ndarray, t: float, pose: HeadPose | None = None
+        self,
+        eyes: np.ndarray,
+        boxes: np.ndarray,
+        t: float,
+        pose: HeadPose | None = None,
+        coarse: np.ndarray | None = None,
     ) -> np.ndarray:
         """One frame's detections -> the eyes to publish.
 
@@ -225,6 +251,9 @@ class EyeTracker:
             pose: the same faces' landmark readings (``eyes`` is ``pose.eyes``), or None
                 (a detector without landmarks): with it, tracks learn and use their
                 viewers' face heights.
+            coarse: (N,) bool, the readings from landmarks too coarse for the face's size
+                (``Faces.coarse``: a newcomer's first): they teach no face height, and a
+                track made of them starts afresh at its first refined reading. None: none.
 
         Returns:
             (K, 3) float64 metres: K = 1 for ``"nearest"``, K >= 1 for ``"all"``.
@@ -233,9 +262,12 @@ class EyeTracker:
         b = np.asarray(boxes, np.float64).reshape(-1, 4)
         if pose is not None and len(pose.range) != len(e):
             raise ValueError(f"pose has {len(pose.range)} faces, eyes {len(e)}")
+        rough = np.zeros(len(e), bool) if coarse is None else np.asarray(coarse, bool).reshape(-1)
+        if len(rough) != len(e):
+            raise ValueError(f"coarse has {len(rough)} faces, eyes {len(e)}")
         if not self.config.face_height:
             pose = None
-        self._match(e, b, float(t), pose)
+        self._match(e, b, float(t), pose, rough)
         one = self._nearest(float(t))
         if self.config.faces == "all" and self.tracks:
             ordered = sorted(self.tracks, key=lambda tr: float(np.linalg.norm(tr.eye)))

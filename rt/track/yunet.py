@@ -54,34 +54,41 @@ class Faces:
 
     ``boxes`` (N, 4) x, y, w, h pixels (top-left corner); ``landmarks`` (N, 5, 2) pixels (x
     right, y down): the eye on the image's left, the eye on the image's right, the nose tip,
-    the mouth corner on the image's left, the one on its right; ``scores`` (N,) in 0..1.
+    the mouth corner on the image's left, the one on its right; ``scores`` (N,) in 0..1;
+    ``coarse`` (N,) bool: the face is small and its landmarks are the search's own, not
+    refined in a crop (a live newcomer's first reading: a few times less precise, see
+    :class:`~viewcomp.rt.track.live_faces.LiveFaces`).
     """
 
     boxes: np.ndarray
     landmarks: np.ndarray
     scores: np.ndarray
+    coarse: np.ndarray
 
     def __len__(self) -> int:
         return len(self.scores)
 
     @staticmethod
     def empty() -> Faces:
-        return Faces(np.zeros((0, 4)), np.zeros((0, 5, 2)), np.zeros(0))
+        return Faces(np.zeros((0, 4)), np.zeros((0, 5, 2)), np.zeros(0), np.zeros(0, bool))
 
-    def rows(self) -> np.ndarray:
-        """(N, 15): box, landmarks and score of each face (YuNet's row layout)."""
-        return np.concatenate(
-            [self.boxes, self.landmarks.reshape(-1, 10), self.scores[:, None]], axis=1
-        )
+    @staticmethod
+    def from_rows(rows: np.ndarray) -> Faces:
+        """The faces of ``rows`` (M, 15): box, landmarks and score each (YuNet's layout),
+        none coarse."""
+        rows = np.asarray(rows, np.float64).reshape(-1, 15)
+        coarse = np.zeros(len(rows), bool)
+        return Faces(rows[:, :4], rows[:, 4:14].reshape(-1, 5, 2), rows[:, 14], coarse)
 
-    def extended(self, rows: np.ndarray) -> Faces:
-        """These faces followed by ``rows`` (M, 15): box, landmarks and score each."""
-        if len(rows) == 0:
+    def extended(self, more: Faces) -> Faces:
+        """These faces followed by ``more``."""
+        if len(more) == 0:
             return self
         return Faces(
-            np.concatenate([self.boxes, rows[:, :4]]),
-            np.concatenate([self.landmarks, rows[:, 4:14].reshape(-1, 5, 2)]),
-            np.concatenate([self.scores, rows[:, 14]]),
+            np.concatenate([self.boxes, more.boxes]),
+            np.concatenate([self.landmarks, more.landmarks]),
+            np.concatenate([self.scores, more.scores]),
+            np.concatenate([self.coarse, more.coarse]),
         )
 
 
@@ -177,7 +184,11 @@ class YuNetDetector:
         return np.asarray(rows, np.float64).reshape(-1, 15)
 
     def detect(
-        self, frame: np.ndarray, scale: float = 1.0, follow: np.ndarray | None = None
+        self,
+        frame: np.ndarray,
+        scale: float = 1.0,
+        follow: np.ndarray | None = None,
+        refine_near: np.ndarray | None = None,
     ) -> Faces:
         """The faces in ``frame`` ((h, w, 3) uint8 BGR, or (h, w) uint8 grey), in its pixels.
 
@@ -185,24 +196,31 @@ class YuNetDetector:
         at 0.5 a 1280x720, 90-degree webcam finds faces up to about 2 m, not at 2.5 m); the
         faces found are refined in the full-resolution frame as small faces always are.
         ``follow``: (K, 4) boxes of faces tracked so far; those the search misses are looked
-        for around where they were (:meth:`follow`) and come after the faces found."""
+        for around where they were (:meth:`follow`) and come after the faces found.
+        ``refine_near`` ((K, 4) boxes): only the small faces overlapping one of them by more
+        than 0.3 IoU are refined (None: every small face)."""
         if frame.ndim == 2:
             frame = cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
-        faces = self._search(frame, scale)
+        faces = self._search(frame, scale, refine_near=refine_near)
         if follow is None or len(follow) == 0:
             return faces
         more = self.follow(frame, follow, faces.boxes)
-        return faces.extended(more)
+        return faces.extended(Faces.from_rows(more))
 
     def search_region(
-        self, frame: np.ndarray, region: tuple[int, int, int, int], known: np.ndarray
+        self,
+        frame: np.ndarray,
+        region: tuple[int, int, int, int],
+        known: np.ndarray,
+        refine_near: np.ndarray | None = None,
     ) -> Faces:
         """The faces in ``region`` (x0, y0, width, height pixels) of ``frame`` ((h, w, 3)
         uint8 BGR) at full resolution, in the frame's pixels, but those overlapping a box of
         ``known`` ((K, 4): faces found already) by more than 0.3 IoU; small faces are refined
         in the whole frame, so a face near the region's edge keeps its context. Regions of
-        one size keep the network's input size (changing it costs a set-up)."""
-        return self._search(frame, 1.0, region, known)
+        one size keep the network's input size (changing it costs a set-up). ``refine_near``
+        as for :meth:`detect`."""
+        return self._search(frame, 1.0, region, known, refine_near)
 
     def _search(
         self,
@@ -210,9 +228,12 @@ class YuNetDetector:
         scale: float,
         region: tuple[int, int, int, int] | None = None,
         known: np.ndarray | None = None,
+        refine_near: np.ndarray | None = None,
     ) -> Faces:
         """The search of :meth:`detect` (BGR ``frame``; the whole frame, or ``region``
-        without the faces of ``known``, before any is refined)."""
+        without the faces of ``known``, before any is refined); with ``refine_near`` ((K, 4)
+        boxes) only the small faces overlapping one of them by more than 0.3 IoU are
+        refined, the others keep the search's landmarks."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -236,12 +257,18 @@ class YuNetDetector:
         f[:, [1, *range(5, 14, 2)]] += y0
         if known is not None and len(known):
             f = f[[float(np.max(iou(row[:4], known))) <= 0.3 for row in f]].reshape(-1, 15)
-        for row in f:  # small faces: landmarks again from an enlarged crop
+        coarse = np.zeros(len(f), bool)
+        for i, row in enumerate(f):  # small faces: landmarks again from an enlarged crop
             if np.linalg.norm(row[6:8] - row[4:6]) < self.config.refine_px:
+                if refine_near is not None and not (
+                    len(refine_near) and float(np.max(iou(row[:4], refine_near))) > 0.3
+                ):
+                    coarse[i] = True
+                    continue
                 better = self.refine(frame, row[:4].copy())
                 if better is not None:
                     row[:14] = better[:14]
         marks = f[:, 4:14].reshape(-1, 5, 2)
         sep = np.linalg.norm(marks[:, 1] - marks[:, 0], axis=1)
         keep = sep >= self.config.min_eye_px
-        return Faces(f[keep, :4], marks[keep], f[keep, 14])
+        return Faces(f[keep, :4], marks[keep], f[keep, 14], coarse[keep])

@@ -58,3 +58,48 @@ def test_a_far_jump_is_a_new_viewer():
     tracker.update(np.array([[0.0, 0.1, 2.0]]), np.zeros((1, 4)), 0.0)
     tracker.update(np.array([[1.5, 0.1, 2.0]]), np.zeros((1, 4)), 1 / 30)
     assert sorted(tr.id for tr in tracker.tracks) == [0, 1]
+
+
+def test_a_coarse_first_reading_gives_way_to_the_first_refined_one():
+    """A newcomer's first reading is coarse (the search's own landmarks): the tracker
+    publishes it at once, then starts afresh at the first refined reading of the same face
+    (its box overlapping), even 0.65 m away along the line of sight, beyond the 0.5 m gate:
+    one track, whose eye is the refined reading itself, with no velocity from the jump. The
+    same two readings both refined are two viewers (the gate)."""
+    coarse_eye, refined_eye = np.array([0.3, 0.15, 2.6]), np.array([0.25, 0.15, 1.95])
+    box, moved = np.array([[600.0, 300.0, 40.0, 48.0]]), np.array([[602.0, 301.0, 41.0, 48.0]])
+    tracker = EyeTracker(TrackerConfig(faces="all", gate=0.5))
+    first = tracker.update(coarse_eye[None], box, 0.0, coarse=np.array([True]))
+    np.testing.assert_array_equal(first, coarse_eye[None])
+    (tr,) = tracker.tracks
+    assert tr.provisional
+    out = tracker.update(refined_eye[None], moved, 0.1, coarse=np.array([False]))
+    (tr,) = tracker.tracks
+    np.testing.assert_array_equal(out, refined_eye[None])
+    assert not tr.provisional and not np.any(tr.velocity)
+    # later readings are smoothed as usual: a refined track is not restarted by a coarse one
+    tracker.update((refined_eye + 0.05)[None], moved, 0.2, coarse=np.array([True]))
+    assert not tr.provisional and tr.eye[0] < refined_eye[0] + 0.05
+
+    both = EyeTracker(TrackerConfig(faces="all", gate=0.5))
+    both.update(coarse_eye[None], box, 0.0)
+    both.update(refined_eye[None], moved, 0.1)
+    assert len(both.tracks) == 2
+
+
+def test_a_coarse_reading_elsewhere_in_the_picture_is_another_viewer():
+    """The box overlap that lets a provisional track jump its gate is the picture's: a
+    refined face far from its box is matched by the 3-D gate alone."""
+    tracker = EyeTracker(TrackerConfig(faces="all", gate=0.5))
+    tracker.update(np.array([[0.3, 0.15, 2.6]]), np.array([[600.0, 300, 40, 48]]), 0.0,
+                   coarse=np.array([True]))  # fmt: skip
+    tracker.update(np.array([[-0.8, 0.15, 1.9]]), np.array([[200.0, 300, 60, 70]]), 0.1,
+                   coarse=np.array([False]))  # fmt: skip
+    assert len(tracker.tracks) == 2 and tracker.tracks[0].provisional
+
+
+def test_coarse_flags_must_match_the_eyes():
+    import pytest
+
+    with pytest.raises(ValueError, match="coarse has 2 faces, eyes 1"):
+        EyeTracker().update(np.ones((1, 3)), np.zeros((1, 4)), 0.0, coarse=np.zeros(2, bool))

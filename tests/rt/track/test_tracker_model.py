@@ -230,3 +230,17 @@ def test_no_face_height_reaches_track_and_play(tmp_path: Path):
             assert thread.pipeline.tracker.config.face_height is on  # type: ignore[attr-defined]
         finally:
             thread.pipeline.close()  # type: ignore[attr-defined]
+
+
+def test_a_coarse_reading_teaches_no_face_height():
+    """A newcomer's coarse first reading (frontal) leaves the face height unknown; the first
+    refined one teaches it."""
+    dev = walk_camera()
+    p = head_pose(dev, landmarks_of_head(dev, np.array([[0.2, 0.15, 1.8]]), 0.0, look=LOOK,
+                                         mouth=0.07))  # fmt: skip
+    tracker = EyeTracker()
+    tracker.update(p.eyes, np.zeros((1, 4)), 0.0, p, coarse=np.array([True]))
+    (tr,) = tracker.tracks
+    assert tr.frontal == 0 and np.isnan(tr.face_height)
+    tracker.update(p.eyes, np.zeros((1, 4)), 0.1, p, coarse=np.array([False]))
+    assert tr.frontal == 1 and tr.face_height == pytest.approx(0.07, rel=0.005)
