@@ -19,7 +19,9 @@ presentation time of the first frame drawn with an eye minus the capture time of
 frame it came from (the frame's index is written into its corner pixels). ``appear``: the
 first eye of each new face, from the frame it came from; ``entry``: the same eye from the
 first frame the face was in (what a viewer walking in waits: the frames where the face was
-not yet found count too); ``all``: every published eye. One process spins on a core for
+not yet found count too); ``accurate``: from the same frame to the first eye drawn within 10
+cm (x, y) and 10 % (distance) of the truth (a newcomer's first eye is a coarse reading, see
+``viewcomp.rt.track.live_faces``); ``all``: every published eye. One process spins on a core for
 the whole run. On a shared machine these vary with whoever else runs: compare rounds of one
 run, never against a fixed number. Run from the repository root::
 
@@ -175,10 +177,15 @@ def latencies(
     capture: SimulatedCapture,
     firsts: list[int],
     stay: int,
+    truths: list[np.ndarray] | None = None,
+    camera: np.ndarray | None = None,
 ) -> dict:
     """The round's latencies: each published eye (frame index, when published, eye, whether
     its frame found a face) matched to the first frame ``drawn`` with it (presentation time,
-    eye); ``firsts``: each face's first frame, ``stay``: the frames it stays."""
+    eye); ``firsts``: each face's first frame, ``stay``: the frames it stays; ``truths``:
+    each face's true eye (3,) metres and ``camera`` (3,) the tracking camera's position, for
+    ``accurate`` (from the face's first frame to the first eye drawn within 10 cm in x and y
+    and 10 % in distance from the camera of the truth) and each first eye's distance ratio."""
     times = np.array([t for t, _ in drawn])
     eyes = np.array([e for _, e in drawn])
     lat, track_ms, appear = [], [], []
@@ -200,7 +207,7 @@ def latencies(
             appear.append(ms)
             entry[face] = 1e3 * (times[hit[0]] - capture.capture_time(face))
             first_eye[face] = [float(v) for v in eye]
-    return {
+    out = {
         "appear": _stats(appear),
         "appear_ms": [round(v, 1) for v in appear],
         "entry": _stats(list(entry.values())),
@@ -208,6 +215,41 @@ def latencies(
         "first_eye_m": [first_eye.get(f) for f in firsts],
         "all": _stats(lat),
         "capture_to_published": _stats(track_ms),
+    }
+    if truths is not None and camera is not None:
+        out.update(accuracy(drawn, capture, firsts, stay, truths, camera, first_eye))
+    return out
+
+
+def accuracy(
+    drawn: list[tuple[float, np.ndarray]],
+    capture: SimulatedCapture,
+    firsts: list[int],
+    stay: int,
+    truths: list[np.ndarray],
+    camera: np.ndarray,
+    first_eye: dict[int, list[float]],
+) -> dict:
+    """Each face's first eye's distance ratio (to the truth, from ``camera``) and the ms from
+    its first frame to the first eye drawn within 10 cm (x, y) and 10 % (distance) of it
+    (see :func:`latencies`)."""
+    ratio, accurate = [], []
+    for f, truth in zip(firsts, truths, strict=True):
+        t0, t1 = capture.capture_time(f), capture.capture_time(f + stay)
+        want = float(np.linalg.norm(truth - camera))
+        eye = first_eye.get(f)
+        ratio.append(None if eye is None else round(float(np.linalg.norm(eye - camera)) / want, 3))
+        ms = None
+        for t, e in drawn:
+            close = np.all(np.abs(e[:2] - truth[:2]) <= 0.1)
+            if t0 <= t < t1 and close and abs(np.linalg.norm(e - camera) / want - 1) <= 0.1:
+                ms = round(1e3 * (t - t0), 1)
+                break
+        accurate.append(ms)
+    return {
+        "first_eye_distance_ratio": ratio,
+        "accurate": _stats([v for v in accurate if v is not None]),
+        "accurate_ms": accurate,
     }
 
 
@@ -257,8 +299,10 @@ def one_round(
                          max_seconds=seconds, inputs=(tracker,))  # fmt: skip
     Player(cal, [clip], opts, on_frame=on_frame).run()
     n = pipeline.stats.frames
+    truths = [eye_from_angle(a, d, 0.15) for a, d in placements(len(firsts))]
+    camera = np.asarray(walk_camera().position, np.float64)
     return {
-        **latencies(published, drawn, capture, firsts, stay),
+        **latencies(published, drawn, capture, firsts, stay, truths, camera),
         "faces": len(firsts),
         "published": len(published),
         "frames_read": pipeline.stats.frames,

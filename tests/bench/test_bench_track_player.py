@@ -31,3 +31,26 @@ def test_the_eased_eye_is_not_the_newcomers_and_entry_counts_from_the_faces_firs
     # a face never found has no first eye, and is not counted as one
     none = bench.latencies(published[:1], drawn[:2], capture, [first], stay=30)
     assert none["entry_ms"] == [None] and none["entry"] == {"n": 0}
+
+
+def test_accurate_is_timed_to_the_first_eye_within_the_tolerances():
+    """A coarse first eye 25 % long, then one within 10 % and 10 cm: ``accurate`` is timed to
+    the second, from the face's first frame; the first eye's distance ratio is 1.25."""
+    bench = load_script("bench/bench_track_player.py")
+    fps = bench.FPS
+    capture = bench.SimulatedCapture([np.zeros((2, 2, 3), np.uint8)] * 60, fps, 4)
+    capture.t0 = 0.0
+    camera, truth = np.zeros(3), np.array([0.3, 0.15, 2.0])
+    coarse, refined = 1.25 * truth, 1.02 * truth
+    first = 10
+    published = [(12, 0.45, coarse, True), (13, 0.50, refined, True)]
+    drawn = [(0.47, coarse), (0.52, refined)]
+    got = bench.latencies(published, drawn, capture, [first], 30, [truth], camera)
+    assert got["first_eye_distance_ratio"] == [pytest.approx(1.25, abs=1e-3)]
+    assert got["entry_ms"] == [pytest.approx(1e3 * (0.47 - first / fps), abs=0.1)]
+    assert got["accurate_ms"] == [pytest.approx(1e3 * (0.52 - first / fps), abs=0.1)]
+    # an eye right in distance but 15 cm aside is not accurate
+    aside = refined + np.array([0.15, 0.0, 0.0])
+    far = bench.latencies(published[:1], [(0.47, coarse), (0.52, aside)], capture, [first], 30,
+                          [truth], camera)  # fmt: skip
+    assert far["accurate_ms"] == [None] and far["accurate"] == {"n": 0}
