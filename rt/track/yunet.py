@@ -48,6 +48,21 @@ def check_model(path: str | Path = MODEL_PATH, sha256: str = MODEL_SHA256) -> Pa
     return p
 
 
+def cut(box: np.ndarray, region: tuple[int, int, int, int], shape: tuple[int, ...]) -> bool:
+    """Whether ``box`` (x, y, w, h pixels) reaches within 4 pixels of an edge of ``region``
+    (x0, y0, width, height) that is not the frame's (``shape``: (h, w, ...)): a face there
+    may be cut by the region, and its landmarks those of a part of it."""
+    x0, y0, rw, rh = region
+    fh, fw = shape[:2]
+    m = 4.0
+    return bool(
+        (x0 > 0 and box[0] <= x0 + m)
+        or (y0 > 0 and box[1] <= y0 + m)
+        or (x0 + rw < fw and box[0] + box[2] >= x0 + rw - m)
+        or (y0 + rh < fh and box[1] + box[3] >= y0 + rh - m)
+    )
+
+
 @dataclass
 class Faces:
     """One frame's faces, strongest first.
@@ -216,7 +231,9 @@ class YuNetDetector:
     ) -> Faces:
         """The faces in ``region`` (x0, y0, width, height pixels) of ``frame`` ((h, w, 3)
         uint8 BGR) at full resolution, in the frame's pixels, but those overlapping a box of
-        ``known`` ((K, 4): faces found already) by more than 0.3 IoU; small faces are refined
+        ``known`` ((K, 4): faces found already) by more than 0.3 IoU and those the region's
+        edge cuts (:func:`cut`; tiles overlapping by a face's size hold it whole in another
+        one, and a part face's landmarks range it wrongly); small faces are refined
         in the whole frame, so a face near the region's edge keeps its context. Regions of
         one size keep the network's input size (changing it costs a set-up). ``refine_near``
         as for :meth:`detect`."""
@@ -233,7 +250,8 @@ class YuNetDetector:
         """The search of :meth:`detect` (BGR ``frame``; the whole frame, or ``region``
         without the faces of ``known``, before any is refined); with ``refine_near`` ((K, 4)
         boxes) only the small faces overlapping one of them by more than 0.3 IoU are
-        refined, the others keep the search's landmarks."""
+        refined; the others keep the search's landmarks (``Faces.coarse``). Faces a region's
+        edge cuts (:func:`cut`) are left out: their landmarks are a part face's."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -257,6 +275,8 @@ class YuNetDetector:
         f[:, [1, *range(5, 14, 2)]] += y0
         if known is not None and len(known):
             f = f[[float(np.max(iou(row[:4], known))) <= 0.3 for row in f]].reshape(-1, 15)
+        if region is not None:  # a face cut by the region's edge: another region holds it
+            f = f[[not cut(row[:4], region, frame.shape) for row in f]].reshape(-1, 15)
         coarse = np.zeros(len(f), bool)
         for i, row in enumerate(f):  # small faces: landmarks again from an enlarged crop
             if np.linalg.norm(row[6:8] - row[4:6]) < self.config.refine_px:

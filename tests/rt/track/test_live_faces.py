@@ -147,3 +147,17 @@ def test_a_grey_frame_is_searched_as_a_colour_one():
     g, c = grey.landmarks[0, :2], colour.landmarks[0, :2]
     np.testing.assert_allclose(g, c, atol=4.0)
     assert abs(np.linalg.norm(g[1] - g[0]) / np.linalg.norm(c[1] - c[0]) - 1) < 0.05
+
+
+def test_a_face_across_a_tiles_edge_is_found_whole_not_in_part():
+    """A face 2.4 m away astride the second tile's left edge (x = 544): that tile sees part
+    of it (YuNet finds a box 22 pixels wide there, its eyes ranging the face 50 % long) and
+    leaves it out; the first tile holds it whole and finds it as the whole frame does."""
+    grid = tiles(1280, 720, *TILES, OVERLAP)
+    assert grid[1][0] == 544
+    frame = _frame([eye_from_angle(81.7, 2.42, 0.15)])
+    (whole,) = YuNetDetector().detect(frame).boxes
+    assert whole[0] < grid[1][0] < whole[0] + whole[2]  # astride the edge
+    found = [YuNetDetector().search_region(frame, g, np.zeros((0, 4))) for g in grid[:2]]
+    assert [len(f) for f in found] == [1, 0]
+    np.testing.assert_allclose(found[0].boxes[0], whole, atol=2.0)
