@@ -19,10 +19,10 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
 - a newcomer's first reading is the search's own: its refinement crop (about 0.7 megapixels,
   more than the half frame and a tile together) waits for its second frame, and a frame that
   found a newcomer leaves its tile to the next one, so the first eye reaches the player about
-  a frame's work sooner. That first reading is marked ``coarse`` (the tracker takes no face
-  height from it and starts afresh from the refined one): from the half frame, its range is
-  a few times less precise (0.8-2 m, single frames: within 10 % in about 70 % of faces, 95-98
-  % refined; see docs/BENCHMARKS.md).
+  a frame's work sooner. That reading is marked ``coarse`` (the tracker takes no face height
+  from it, knows the face's next reading by its box and starts afresh from it): newcomers at
+  0.8-3.5 m, 60-120 degrees, are within 10 cm and 10 % in about 70 % of first readings
+  (distance error median 6 %, at most 21 %) against 97 % refined (docs/BENCHMARKS.md).
 
 All of it runs in the caller's thread and the work per frame is bounded. (A worker thread
 searching whole frames back to back took 200-400 ms a search with one of two cores busy, so
