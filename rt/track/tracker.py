@@ -17,6 +17,11 @@ that height where the height says it is nearer
 (:func:`~viewcomp.rt.track.anatomy.ranged_eyes`): the assignment compares each face, ranged
 with each track's own height, to that track's prediction.
 
+A reading marked coarse (a live newcomer's first, from the search's own landmarks) starts a
+*provisional* track: it teaches no face height, the face whose box overlaps the track's box
+is its own whatever its distance, the first refined reading restarts the filter there, and
+until then it does not take ``"nearest"`` over from a viewer already followed.
+
 What is published (:meth:`EyeTracker.update`):
 
 - ``faces="nearest"``: one eye: the nearest viewer's (distance from the screen centre, the
@@ -213,6 +218,8 @@ class EyeTracker:
         seen = [tr for tr in self.tracks if tr.seen == t]
         # the followed viewer, seen now or held (not seen for at most `hold` seconds)
         current = next((tr for tr in self.tracks if tr.id == self._chosen), None)
+        if current is not None:  # a coarse newcomer's distance takes over from no viewer
+            seen = [tr for tr in seen if not tr.provisional]
         if seen:
             best = min(seen, key=lambda tr: float(np.linalg.norm(tr.eye)))
             if current is None or (

@@ -103,3 +103,26 @@ def test_coarse_flags_must_match_the_eyes():
 
     with pytest.raises(ValueError, match="coarse has 2 faces, eyes 1"):
         EyeTracker().update(np.ones((1, 3)), np.zeros((1, 4)), 0.0, coarse=np.zeros(2, bool))
+
+
+def test_a_coarse_newcomer_does_not_take_over_from_the_followed_viewer():
+    """With ``faces="nearest"`` following a viewer 2 m away, a newcomer's coarse first
+    reading puts them at 1.5 m (really 2.1 m): the published eye stays the followed viewer's,
+    and the refined reading, farther, does not take over either. With nobody followed, a
+    coarse newcomer is published at once."""
+    tracker = EyeTracker(TrackerConfig(faces="nearest", switch_margin=0.3))
+    viewer = np.array([-0.5, 0.15, 2.0])
+    box_v, box_n = np.array([300.0, 300, 40, 48]), np.array([800.0, 300, 40, 48])
+    for i in range(3):
+        tracker.update(viewer[None], box_v[None], i / 10)
+    coarse, refined = np.array([0.5, 0.15, 1.5]), np.array([0.5, 0.15, 2.1])
+    out = tracker.update(np.array([viewer, coarse]), np.array([box_v, box_n]), 0.3,
+                         coarse=np.array([False, True]))  # fmt: skip
+    np.testing.assert_allclose(out[0], viewer)
+    out = tracker.update(np.array([viewer, refined]), np.array([box_v, box_n]), 0.4,
+                         coarse=np.array([False, False]))  # fmt: skip
+    np.testing.assert_allclose(out[0], viewer)
+
+    alone = EyeTracker(TrackerConfig(faces="nearest"))
+    out = alone.update(coarse[None], box_n[None], 0.0, coarse=np.array([True]))
+    np.testing.assert_array_equal(out[0], coarse)
