@@ -18,3 +18,12 @@ def iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     inter = ix * iy
     union = box[2] * box[3] + b[:, 2] * b[:, 3] - inter
     return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0)  # empty: 0
+
+
+SAME_FACE = 0.3  # the IoU above which two boxes are taken for one face
+
+
+def overlaps(box: np.ndarray, boxes: np.ndarray) -> bool:
+    """Whether ``box`` (4,) and any of ``boxes`` (N, 4), x y w h, are one face (IoU above
+    :data:`SAME_FACE`); False for no boxes."""
+    return len(boxes) > 0 and float(np.max(iou(box, boxes))) > SAME_FACE

@@ -39,7 +39,7 @@ import math
 import cv2
 import numpy as np
 
-from viewcomp.rt.track.boxes import iou
+from viewcomp.rt.track.boxes import overlaps
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 
 SCALE = 0.5  # the per-frame search's resize factor
@@ -95,7 +95,7 @@ class LiveFaces:
         faces = self.frame_detector.detect(image, self.scale, refine_near=known)
         self._frames += 1
         due = not len(known) or self._frames % TRACKING_EVERY == 0
-        newcomer = any(not len(known) or float(np.max(iou(b, known))) <= 0.3 for b in faces.boxes)
+        newcomer = any(not overlaps(b, known) for b in faces.boxes)
         if due and not newcomer:
             h, w = image.shape[:2]
             if self._grid[0] != (w, h):  # the frame's size: the tiles are computed once

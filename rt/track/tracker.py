@@ -53,7 +53,7 @@ from viewcomp.rt.track.anatomy import (
     ranged_eyes,
     smoothstep,
 )
-from viewcomp.rt.track.boxes import iou
+from viewcomp.rt.track.boxes import SAME_FACE, iou
 from viewcomp.rt.track.filter import OneEuroFilter
 
 # A viewer's face height is the mean of its first HEIGHT_FRAMES frontal frames, then an
@@ -177,7 +177,7 @@ class EyeTracker:
             for k, tr in enumerate(self.tracks):
                 if tr.provisional and len(boxes):
                     over = iou(tr.box, boxes)
-                    cost[:, k] = np.where(over > 0.3, (1.0 - over) * c.gate, cost[:, k])
+                    cost[:, k] = np.where(over > SAME_FACE, (1.0 - over) * c.gate, cost[:, k])
             gated = np.where(cost <= c.gate, cost, 1e6)  # a pair beyond the gate is no match
             rows, cols = linear_sum_assignment(gated)
             for i, k in zip(rows.tolist(), cols.tolist(), strict=True):

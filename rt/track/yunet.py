@@ -19,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from viewcomp.rt.track.boxes import iou
+from viewcomp.rt.track.boxes import overlaps
 from viewcomp.rt.track.faces import DetectorError
 
 log = logging.getLogger(__name__)
@@ -189,7 +189,7 @@ class YuNetDetector:
         rows: list[np.ndarray] = []
         taken = np.asarray(taken, np.float64).reshape(-1, 4)
         for box in np.asarray(boxes, np.float64).reshape(-1, 4):
-            if len(taken) and float(np.max(iou(box, taken))) > 0.3:
+            if overlaps(box, taken):
                 continue
             row = self.refine(frame, box)
             if row is None or np.linalg.norm(row[6:8] - row[4:6]) < self.config.min_eye_px:
@@ -274,15 +274,13 @@ class YuNetDetector:
         f[:, [0, *range(4, 14, 2)]] += x0  # to the frame's pixels
         f[:, [1, *range(5, 14, 2)]] += y0
         if known is not None and len(known):
-            f = f[[float(np.max(iou(row[:4], known))) <= 0.3 for row in f]].reshape(-1, 15)
+            f = f[[not overlaps(row[:4], known) for row in f]].reshape(-1, 15)
         if region is not None:  # a face cut by the region's edge: another region holds it
             f = f[[not cut(row[:4], region, frame.shape) for row in f]].reshape(-1, 15)
         coarse = np.zeros(len(f), bool)
         for i, row in enumerate(f):  # small faces: landmarks again from an enlarged crop
             if np.linalg.norm(row[6:8] - row[4:6]) < self.config.refine_px:
-                if refine_near is not None and not (
-                    len(refine_near) and float(np.max(iou(row[:4], refine_near))) > 0.3
-                ):
+                if refine_near is not None and not overlaps(row[:4], refine_near):
                     coarse[i] = True
                     continue
                 better = self.refine(frame, row[:4].copy())
