@@ -21,7 +21,7 @@ import numpy as np
 
 from viewcomp.calib.world.rig import Device, Rig, tracking_camera
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH, HeadPose, head_pose
-from viewcomp.rt.track.boxes import iou
+from viewcomp.rt.track.boxes import SAME_FACE, iou
 from viewcomp.rt.track.faces import DetectorConfig, FaceDetector, size_range
 from viewcomp.rt.track.live_faces import LiveFaces
 from viewcomp.rt.track.pose import EYE_ROW, FACE_WIDTH, camera_for_frames, eyes_from_boxes
@@ -161,7 +161,7 @@ class Pipeline:
                 continue
             overlap = iou(tr.box, boxes)
             i = int(np.argmax(overlap))
-            if overlap[i] < 0.3:
+            if overlap[i] < SAME_FACE:
                 continue
             found = tr.template.measure(gray, boxes[i], self.options.scale)
             if found is not None:
