@@ -34,6 +34,11 @@ it ranges nearer is not taken into the viewer's height. Both readings assume the
 watches the picture: the head faces ``look`` (the screen's centre, the world origin), so the
 camera above or below it sees the face nodding by a known angle (:func:`nod`).
 
+Before a viewer's own height is measured (a single frame, a face first seen turned), the
+adults' typical height is used the same way, with gates as much wider as it is less certain
+(:func:`prior_ranged_eyes`): ``FACE_HEIGHT`` IPD, from anthropometric norms, not from the
+tracker's test faces.
+
 Error model (docs/INTERFACES.md): the range is proportional to the viewer's true IPD, so a
 person whose IPD differs from ``ipd`` by 6 % is ranged 6 % off (x, y scale with it along the
 line of sight); a landmark error of e pixels on an eye separation of S pixels gives about
@@ -64,6 +69,15 @@ NEARER_FROM = 0.04
 NEARER_TO = 0.12
 TURN_FROM = np.radians(5.0)
 TURN_TO = np.radians(15.0)
+# The eyes'-midpoint-to-mouth-corners' height of an adult, in IPDs, where the viewer's own
+# is not measured yet: nasion to stomion is 72-77 mm in adult norms (women - men; nasal
+# height 48-51 mm + upper lip 24-26 mm), the pupils lie about 10 mm below the nasion and the
+# mouth corners about 2 mm above the stomion: 60-65 mm, against IPDs of 60-64 mm.
+FACE_HEIGHT = 1.0
+# People differ in that ratio by about 7 % (one SD) besides the 5 % per-frame scatter: about
+# 9 % in all, so the prior's gates are those of a measured height (0.8 and 2.4 SD) widened.
+PRIOR_NEARER_FROM = 0.07
+PRIOR_NEARER_TO = 0.21
 LOOK = (0.0, 0.0, 0.0)  # metres: where viewers look, the screen's centre
 
 
@@ -76,7 +90,7 @@ class HeadPose:
     normalised units, the eyes' midpoint to the mouth corners' across the eye line (NaN
     without a mouth); ``rays`` (N, 3) unit vectors from the camera's centre ``origin`` (3,)
     to the eyes; ``nod`` (2, N): (cos a, sin a) of each head as :func:`nod` gives them for the
-    ``look`` of :func:`head_pose`."""
+    ``look`` of :func:`head_pose`; ``ipd`` metres, the interpupillary distance ranged with."""
 
     eyes: np.ndarray
     range: np.ndarray
@@ -87,13 +101,14 @@ class HeadPose:
     rays: np.ndarray
     origin: np.ndarray
     nod: np.ndarray
+    ipd: float = IPD
 
     def take(self, keep: np.ndarray) -> HeadPose:
         """The faces where ``keep`` (N,) bool is true."""
         k = np.asarray(keep, bool)
         return HeadPose(
             self.eyes[k], self.range[k], self.yaw[k], self.roll[k], self.separation[k],
-            self.height[k], self.rays[k], self.origin, self.nod[:, k],
+            self.height[k], self.rays[k], self.origin, self.nod[:, k], self.ipd,
         )  # fmt: skip
 
 
@@ -127,7 +142,9 @@ def head_pose(
     origin = np.asarray(device.position, np.float64)
     if n == 0:
         z = np.zeros(0)
-        return HeadPose(np.zeros((0, 3)), z, z, z, z, z, np.zeros((0, 3)), origin, np.zeros((2, 0)))
+        return HeadPose(
+            np.zeros((0, 3)), z, z, z, z, z, np.zeros((0, 3)), origin, np.zeros((2, 0)), ipd
+        )
     rays = device.rays_through(lm)  # (N, K, 3) unit, world
     m = rays[:, 0] + rays[:, 1]
     m /= np.linalg.norm(m, axis=1, keepdims=True)
@@ -155,7 +172,9 @@ def head_pose(
         height = np.full(n, np.nan)
     rng = ipd * np.cos(yaw) / sep
     eyes = origin + m * rng[:, None]
-    return HeadPose(eyes, rng, yaw, roll, sep, height, m, origin, np.stack(nod(origin, eyes, look)))
+    return HeadPose(
+        eyes, rng, yaw, roll, sep, height, m, origin, np.stack(nod(origin, eyes, look)), ipd
+    )
 
 
 def nod(
@@ -194,14 +213,17 @@ def smoothstep(x: np.ndarray | float, lo: float = 0.0, hi: float = 1.0) -> np.nd
     return t * t * (3.0 - 2.0 * t)
 
 
-def ranged_eyes(pose: HeadPose, height_m: float) -> tuple[np.ndarray, np.ndarray]:
+def ranged_eyes(
+    pose: HeadPose, height_m: float, gate: tuple[float, float] = (NEARER_FROM, NEARER_TO)
+) -> tuple[np.ndarray, np.ndarray]:
     """The faces ranged with one viewer's face height, ``height_m`` metres (measured by
     :func:`face_height`).
 
     The range is blended from the IPD's toward the face height's by a smoothstep in how much
-    nearer the height ranges the face (a share of the IPD's range), from :data:`NEARER_FROM`
-    to :data:`NEARER_TO`, times one in the read yaw, from :data:`TURN_FROM` to
-    :data:`TURN_TO`; the IPD's range where the mouth was not seen.
+    nearer the height ranges the face (a share of the IPD's range), from ``gate[0]`` to
+    ``gate[1]`` (for a measured height :data:`NEARER_FROM`, :data:`NEARER_TO`), times one in
+    the read yaw, from :data:`TURN_FROM` to :data:`TURN_TO`; the IPD's range where the mouth
+    was not seen.
 
     Returns:
         The eyes (N, 3) metres, and (N,) how much nearer the height ranged each face (a
@@ -214,10 +236,20 @@ def ranged_eyes(pose: HeadPose, height_m: float) -> tuple[np.ndarray, np.ndarray
     cos_a, sin_a = pose.nod[:, ok]
     by_height = height_m * (cos_a / h[ok] + sin_a)  # face_height solved for the range
     nearer[ok] = 1.0 - by_height / rng[ok]
-    w = smoothstep(nearer[ok], NEARER_FROM, NEARER_TO)
+    w = smoothstep(nearer[ok], *gate)
     w *= smoothstep(np.abs(pose.yaw[ok]), TURN_FROM, TURN_TO)
     rng[ok] = (1.0 - w) * rng[ok] + w * by_height
     return pose.origin + pose.rays * rng[:, None], nearer
+
+
+def prior_ranged_eyes(pose: HeadPose) -> np.ndarray:
+    """(N, 3) metres: the faces ranged as :func:`ranged_eyes` does with the typical adult face
+    height (:data:`FACE_HEIGHT` x ``pose.ipd``) and its wider gates
+    (:data:`PRIOR_NEARER_FROM`, :data:`PRIOR_NEARER_TO`): a viewer whose own height is not
+    measured yet. A face a turn's under-read ranges long comes nearer; a frontal one, or one
+    whose face is shorter than typical, keeps its IPD range."""
+    gate = (PRIOR_NEARER_FROM, PRIOR_NEARER_TO)
+    return ranged_eyes(pose, FACE_HEIGHT * pose.ipd, gate)[0]
 
 
 def landmarks_of_head(

@@ -15,7 +15,9 @@ running mean over about ``HEIGHT_FRAMES`` of them; a face the height already ran
 not taken: it is turned more than its nose says), and a face matched to it is ranged with
 that height where the height says it is nearer
 (:func:`~viewcomp.rt.track.anatomy.ranged_eyes`): the assignment compares each face, ranged
-with each track's own height, to that track's prediction.
+with each track's own height, to that track's prediction. Until a track has measured its
+viewer's height (and for a face that starts a track), the typical adult's is used with wider
+gates (:func:`~viewcomp.rt.track.anatomy.prior_ranged_eyes`).
 
 A reading marked coarse (a live newcomer's first, from the search's own landmarks) starts a
 *provisional* track: it teaches no face height, the face whose box overlaps the track's box
@@ -50,6 +52,7 @@ from viewcomp.rt.track.anatomy import (
     NEARER_TO,
     HeadPose,
     face_height,
+    prior_ranged_eyes,
     ranged_eyes,
     smoothstep,
 )
@@ -143,8 +146,9 @@ class EyeTracker:
         return np.asarray([t.box for t in self.tracks], np.float64).reshape(-1, 4)
 
     def _candidates(self, eyes: np.ndarray, pose: HeadPose | None) -> tuple[np.ndarray, np.ndarray]:
-        """(N, K, 3): each face's eye as each track would range it (its face height), and
-        (N, K) how much nearer the height ranged it (a share; NaN: not ranged by a height)."""
+        """(N, K, 3): each face's eye as each track would range it (its face height; ``eyes``
+        for a track that has none yet), and (N, K) how much nearer the height ranged it (a
+        share; NaN: not ranged by a measured height)."""
         out = np.repeat(eyes[:, None, :], len(self.tracks), axis=1)
         nearer = np.full(out.shape[:2], np.nan)
         if pose is not None:
@@ -168,6 +172,8 @@ class EyeTracker:
         heights = face_height(pose) if pose is not None else np.full(len(eyes), np.nan)
         heights = np.where(coarse, np.nan, heights)  # a coarse reading teaches no height
         yaws = pose.yaw if pose is not None else np.zeros(len(eyes))
+        if pose is not None:  # before a viewer's own height: the typical adult's
+            eyes = prior_ranged_eyes(pose)
         if len(eyes) and self.tracks:
             pred = np.asarray([tr.predict(t) for tr in self.tracks])
             cand, nearer = self._candidates(eyes, pose)

@@ -17,7 +17,10 @@ import pytest
 from viewcomp.calib.world.rig import RigError, rig_from_dict, rig_to_toml
 from viewcomp.cli import main
 from viewcomp.rt.track.anatomy import (
+    FACE_HEIGHT,
+    IPD,
     LOOK,
+    TURN_FROM,
     TURN_TO,
     face_height,
     head_pose,
@@ -175,6 +178,53 @@ def test_a_viewer_turned_more_than_the_nose_says_is_ranged_by_their_face_height(
             else:
                 assert got == pytest.approx(lagging.range[0])
     assert full >= 2  # the face height wholly in some of them
+
+
+def _first_range(dev, marks: np.ndarray, on: bool = True) -> float:
+    """The range (metres from the camera) of the eye a fresh tracker gives a face."""
+    p = head_pose(dev, marks)
+    (eye,) = EyeTracker(TrackerConfig(face_height=on)).update(p.eyes, np.zeros((1, 4)), 0.0, p)
+    return float(np.linalg.norm(eye - np.asarray(dev.position)))
+
+
+def test_a_viewer_not_yet_measured_is_ranged_by_the_typical_face_height():
+    """A face that starts a track (no face height measured): a typical face (FACE_HEIGHT
+    IPD), watching the screen, turned 45 degrees with a nose lagging half way, is ranged
+    25-40 % long by its IPD; a fresh tracker ranges it within 3 % where the nose reads a turn
+    of TURN_TO or more, never longer than the IPD. A face 10 % shorter than typical is never
+    ranged short (the typical height ranges it long); one 14 % taller (two SD), read with an
+    exact nose, at most 12 % short (the IPD: up to 29 % long at 45 degrees); frontal faces
+    keep the IPD's range; with ``face_height`` off, every face does."""
+    dev = walk_camera()
+    p0 = np.asarray(dev.position)
+    read = 0
+    for e in _watching(12, 5):
+        truth = np.linalg.norm(e - p0)
+
+        def marks(turn: float, h: float, share: float, e: np.ndarray = e) -> np.ndarray:
+            kw = {"look": LOOK, "mouth": h * IPD}
+            frontal = landmarks_of_head(dev, e[None], 0.0, **kw)
+            turned = landmarks_of_head(dev, e[None], math.radians(turn), **kw)
+            return _lagging_nose(frontal, turned, share)
+
+        lag = marks(45, FACE_HEIGHT, 0.5)
+        ipd_range = head_pose(dev, lag).range[0]
+        assert ipd_range > 1.25 * truth
+        got = _first_range(dev, lag)
+        assert got <= ipd_range + 1e-9
+        if abs(head_pose(dev, lag).yaw[0]) >= TURN_TO:
+            read += 1
+            assert abs(got / truth - 1.0) < 0.03, (e, got / truth)
+        assert _first_range(dev, lag, on=False) == pytest.approx(ipd_range)
+        short = marks(45, 0.9 * FACE_HEIGHT, 0.5)
+        assert truth <= _first_range(dev, short) <= head_pose(dev, short).range[0] + 1e-9
+        for turn in (0, 25, 45):
+            tall = marks(turn, 1.14 * FACE_HEIGHT, 1.0)
+            got = _first_range(dev, tall)
+            if turn == 0 or abs(head_pose(dev, tall).yaw[0]) < TURN_FROM:
+                assert got == pytest.approx(head_pose(dev, tall).range[0])
+            assert got / truth > 0.88, (turn, e, got / truth)
+    assert read >= 3  # the face height wholly in some of them (3 of 12: nodding heads)
 
 
 def test_a_frontal_face_with_its_mouth_misplaced_keeps_the_ipd_range():

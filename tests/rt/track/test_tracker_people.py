@@ -36,7 +36,7 @@ from viewcomp.rt.track.run import Pipeline, TrackOptions
 from viewcomp.rt.track.simscene import Person, finish, posed, render_person
 from viewcomp.rt.track.simwalk import background, walk_camera
 from viewcomp.rt.track.source import ArraySource
-from viewcomp.rt.track.tracker import TrackerConfig
+from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
 from viewcomp.rt.track.yunet import YuNetDetector
 
 
@@ -100,7 +100,8 @@ def poses(n: int, seed: int) -> np.ndarray:
 
 def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.ndarray]]:
     """Per (person, condition): the true eyes (n, 3), the measured eyes (n, 3) (NaN where no
-    face was found) from one frame each, YuNet + :func:`head_pose` alone (no filter)."""
+    face was found) from one frame each: YuNet, :func:`head_pose` and the eye a fresh
+    :class:`EyeTracker` gives the face (a viewer not known yet; no filter)."""
     dev = walk_camera()
     back = background(dev.resolution, seed)
     det = YuNetDetector()
@@ -117,8 +118,9 @@ def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.nd
                 f = render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
                                   occluder=kw.get("occluder"), look=look_at(kw, rng))  # fmt: skip
                 faces = det.detect(finish(f, rng, kw.get("noise", 0.01)))
-                if len(faces):
-                    got[i] = head_pose(dev, faces.landmarks[:1]).eyes[0]
+                if len(faces):  # the eye a face that starts a track is given
+                    pose = head_pose(dev, faces.landmarks[:1])
+                    got[i] = EyeTracker().update(pose.eyes, faces.boxes[:1], 0.0, pose)[0]
             out[person.name, cond] = {"truth": truth, "got": got}
     return out
 
@@ -227,10 +229,12 @@ NAMES = ("astronaut", "hopper", "luispedro")
 # expected failures (strict: one that starts passing must be looked at), not weakened
 # checks. Median distance ratios:
 SHORT = {
-    ("astronaut", "turned 45"): "1.151: YuNet's nose lags a 45-degree turn, yaw under-read",
-    ("hopper", "turned 45"): "1.182: yaw under-read (a sixth of frames not found)",
-    ("luispedro", "turned 25"): "1.056: yaw under-read",
-    ("luispedro", "turned 45"): "1.162: yaw under-read",
+    ("astronaut", "turned 45"): "1.059: YuNet's nose lags a 45-degree turn, yaw under-read "
+    "(1.152 by the IPD alone; the typical face height takes most of it back)",
+    ("hopper", "turned 45"): "1.090: yaw under-read (1.182 by the IPD alone; a sixth of "
+    "frames not found)",
+    ("luispedro", "turned 25"): "1.051-1.056 (by host): yaw under-read",
+    ("luispedro", "turned 45"): "1.157: yaw under-read; his face is shorter than the typical",
     ("luispedro", "occluded"): "1.061: a quarter of frames not found, the rest spread",
 }
 # The same, where the median sits at the bar's edge, so that a host's floating point in
@@ -270,7 +274,7 @@ def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
             n,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="measured 74 % (astronaut), 64 % (hopper), 69 % (luispedro) of all "
+                reason="measured 82 % (astronaut), 74 % (hopper), 69 % (luispedro) of all "
                 "frames: turns of 25-45 degrees, occlusion (docs/INTERFACES.md)",
             ),
         )
