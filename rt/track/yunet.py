@@ -115,6 +115,10 @@ class YuNetConfig:
     ``refine_px``: a face whose eyes are closer than this (pixels) is detected again in a crop
     around it enlarged so its box is ``refine_box_px`` wide (YuNet's landmarks on a small face
     are coarse, about a pixel, i.e. 7 % of the range at 15 pixels between the eyes; 0: never).
+    ``candidate``: a small face (eyes closer than ``refine_px``) that the search scores from
+    ``candidate`` to ``score`` is looked at again in that crop, where it is larger, and kept
+    if the crop finds it with ``score`` or more (a far face half covered by a hand scores
+    0.2-0.5 in the frame and about 0.9 in the crop); ``candidate`` = ``score``: never.
     """
 
     score: float = 0.6
@@ -123,6 +127,7 @@ class YuNetConfig:
     min_eye_px: float = 6.0
     refine_px: float = 48.0
     refine_box_px: float = 160.0
+    candidate: float = 0.2
 
 
 class YuNetDetector:
@@ -137,9 +142,11 @@ class YuNetDetector:
                 "opencv-contrib-python-headless >= 5.0, or use --detector cascade"
             )
         c = self.config
+        if not 0.0 < c.candidate <= c.score:
+            raise ValueError(f"candidate must be in (0, score={c.score}], got {c.candidate}")
         try:
             self.net = cv2.FaceDetectorYN.create(
-                str(self.path), "", (320, 320), c.score, c.nms, c.top_k
+                str(self.path), "", (320, 320), c.candidate, c.nms, c.top_k
             )
         except cv2.error as exc:
             raise DetectorError(f"OpenCV cannot load the face model {self.path}: {exc}") from None
@@ -251,7 +258,9 @@ class YuNetDetector:
         without the faces of ``known``, before any is refined); with ``refine_near`` ((K, 4)
         boxes) only the small faces overlapping one of them by more than 0.3 IoU are
         refined; the others keep the search's landmarks (``Faces.coarse``). Faces a region's
-        edge cuts (:func:`cut`) are left out: their landmarks are a part face's."""
+        edge cuts (:func:`cut`) are left out: their landmarks are a part face's. A small face
+        scored under ``score`` (from ``candidate``) is kept only if its refinement crop finds
+        it, and then with the crop's reading (never coarse); a large one is left out."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -277,16 +286,28 @@ class YuNetDetector:
             f = f[[not overlaps(row[:4], known) for row in f]].reshape(-1, 15)
         if region is not None:  # a face cut by the region's edge: another region holds it
             f = f[[not cut(row[:4], region, frame.shape) for row in f]].reshape(-1, 15)
+        c = self.config
         coarse = np.zeros(len(f), bool)
+        keep = np.ones(len(f), bool)
         for i, row in enumerate(f):  # small faces: landmarks again from an enlarged crop
-            if np.linalg.norm(row[6:8] - row[4:6]) < self.config.refine_px:
-                if refine_near is not None and not overlaps(row[:4], refine_near):
-                    coarse[i] = True
-                    continue
-                better = self.refine(frame, row[:4].copy())
+            unsure = row[14] < c.score
+            if np.linalg.norm(row[6:8] - row[4:6]) >= c.refine_px:
+                keep[i] = not unsure  # a large face the crop would only shrink
+                continue
+            if not unsure and refine_near is not None and not overlaps(row[:4], refine_near):
+                coarse[i] = True
+                continue
+            better = self.refine(frame, row[:4].copy())
+            if not unsure:
                 if better is not None:
                     row[:14] = better[:14]
+            elif better is not None and not overlaps(better[:4], f[:i][keep[:i], :4]):
+                row[:] = better  # found again: the crop's reading and score
+            else:
+                keep[i] = False
+        order = np.argsort(-f[keep, 14], kind="stable")  # strongest first again
+        f, coarse = f[keep][order], coarse[keep][order]
         marks = f[:, 4:14].reshape(-1, 5, 2)
         sep = np.linalg.norm(marks[:, 1] - marks[:, 0], axis=1)
-        keep = sep >= self.config.min_eye_px
+        keep = sep >= c.min_eye_px
         return Faces(f[keep, :4], marks[keep], f[keep, 14], coarse[keep])

@@ -231,16 +231,15 @@ NAMES = ("astronaut", "hopper", "luispedro")
 SHORT = {
     ("astronaut", "turned 45"): "1.059: YuNet's nose lags a 45-degree turn, yaw under-read "
     "(1.152 by the IPD alone; the typical face height takes most of it back)",
-    ("hopper", "turned 45"): "1.090: yaw under-read (1.182 by the IPD alone; a sixth of "
-    "frames not found)",
+    ("hopper", "turned 45"): "1.102: yaw under-read (1.182 by the IPD alone)",
     ("luispedro", "turned 25"): "1.051-1.056 (by host): yaw under-read",
     ("luispedro", "turned 45"): "1.157: yaw under-read; his face is shorter than the typical",
-    ("luispedro", "occluded"): "1.061: a quarter of frames not found, the rest spread",
 }
 # The same, where the median sits at the bar's edge, so that a host's floating point in
 # OpenCV's DNN may put it either side (not strict):
 EDGE = {
     ("luispedro", "watching"): "1.051: his photograph, turned back 43 degrees, nodding",
+    ("luispedro", "occluded"): "1.052: a sixth of frames not found, the rest spread",
 }
 
 
@@ -274,7 +273,7 @@ def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
             n,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="measured 82 % (astronaut), 74 % (hopper), 69 % (luispedro) of all "
+                reason="measured 85 % (astronaut), 81 % (hopper), 71 % (luispedro) of all "
                 "frames: turns of 25-45 degrees, occlusion (docs/INTERFACES.md)",
             ),
         )
@@ -290,31 +289,14 @@ def test_within_the_tolerances_in_95_percent_of_frames(measured, name):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(
-            "astronaut",
-            # Not strict: the dim face at 3.4 m sits at YuNet's threshold, and whether it is
-            # found depends on the host's floating point in OpenCV's DNN (the same code and
-            # packages: 2026-11-26's host missed it, 75 % within; an AMD EPYC host on
-            # 2026-11-27 finds all 12, 92 % within).
-            marks=pytest.mark.xfail(
-                strict=False,
-                reason="dim: one face of 12 not found (3.4 m) on some hosts, 75 % within",
-            ),
-        ),
-        "hopper",
-        "luispedro",
-    ],
-)
+@pytest.mark.parametrize("name", NAMES)
 def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
     """A guard below the issue's 95 % (which is the expected failure above): frontal and
     dim faces are all found, and at least 80 % within 10 cm in x and y and 10 % in distance
-    (measured: astronaut 100 % and 75 % (one dim face of 12 not found; 92 % on hosts that
-    find it), hopper 83 % and 92 %,
-    luispedro 92 % and 92 %; the misses are far and far aside, where 10 cm in x is 3 % of the
-    distance)."""
+    (measured: astronaut 100 % and 83 %, hopper 83 % and 92 %, luispedro 92 % and 92 %; the
+    misses are far and far aside, where 10 cm in x is 3 % of the distance). The astronaut's
+    dim face at 3.4 m, which the frame scores about 0.6 (found or not by the host's floating
+    point before), is found by the second look in its crop."""
     for cond in ("frontal", "dim"):
         s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
         assert s["found"] == 1.0 and s["within"] >= 0.8, (cond, s)
@@ -338,14 +320,15 @@ def test_a_tracked_face_is_followed_behind_a_hand(measured):
     """A viewer already tracked who raises a hand over mouth and chin: the pipeline looks
     for the face again in an enlarged crop where it was, which finds what the whole-frame
     search misses (measured, the same poses, astronaut / hopper / luispedro: single frames
-    67 / 58 / 75 % found; tracked 100 %, 83 / 83 / 83 % within 10 cm in x and y and 10 % in
-    distance, median distance ratio 0.972 / 1.024 / 1.063; a face height misplaced by the
-    covered mouth costs the astronaut one frame: 92 % without it)."""
+    75 / 92 / 83 % found, 67 / 58 / 75 % before the search's second look at small low-scored
+    faces; tracked 100 %, 83 / 83 / 83 % within 10 cm in x and y and 10 % in distance, median
+    distance ratio 0.972 / 1.023 / 1.020; a face height misplaced by the covered mouth costs
+    the astronaut one frame: 92 % without it)."""
     tracked = measure_tracked("occluded")
     for name in NAMES:
         alone = scores(measured[name, "occluded"]["truth"], measured[name, "occluded"]["got"])
         s = scores(tracked[name]["truth"], tracked[name]["got"])
-        assert alone["found"] < 0.9, alone  # the bias this is about: whole-frame misses
+        assert alone["found"] < 1.0, alone  # the bias this is about: whole-frame misses
         assert s["found"] == 1.0 and s["within"] >= 0.8, (name, s)
 
 
@@ -355,8 +338,8 @@ def test_a_viewer_who_turns_while_watching_is_ranged_by_their_face_height():
     (:func:`measure_turning`, 6 walks a person): YuNet's nose lags the turn and the nodding
     head's nose reads a smaller turn still, so the IPD alone ranges them long (measured, 12
     walks: median 1.22 / 1.24 / 1.25, within 10 cm and 10 % in 11 / 6 / 3 % of frames); the
-    face height each track learned while they faced the screen ranges them (0.95 / 1.08 /
-    1.04, 64 / 47 / 72 %)."""
+    face height each track learned while they faced the screen ranges them (0.95 / 1.07 /
+    1.04, 69 / 58 / 72 %)."""
     on = measure_turning(45.0, n=6)
     off = measure_turning(45.0, n=6, face_height=False)
     for name in NAMES:
