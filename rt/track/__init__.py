@@ -4,6 +4,7 @@
 - ``yunet``: faces and their landmarks (YuNet, the model shipped in ``models/``, checksummed);
   tracked faces followed in crops.
 - ``live_faces``: YuNet for a live camera: each frame at half resolution and one tile at full.
+- ``rectify``: a face seen square-on: a crop of a frame as a virtual camera pointed at it.
 - ``boxes``: how much two face boxes overlap.
 - ``anatomy``: a viewer's eye from the landmarks: distance from the interpupillary distance,
   corrected for the head's turn; a viewer's face height and the range it gives a turned face.

@@ -246,8 +246,8 @@ def prior_ranged_eyes(pose: HeadPose) -> np.ndarray:
     """(N, 3) metres: the faces ranged as :func:`ranged_eyes` does with the typical adult face
     height (:data:`FACE_HEIGHT` x ``pose.ipd``) and its wider gates
     (:data:`PRIOR_NEARER_FROM`, :data:`PRIOR_NEARER_TO`): a viewer whose own height is not
-    measured yet. A face a turn's under-read ranges long comes nearer; a frontal one, or one
-    whose face is shorter than typical, keeps its IPD range."""
+    measured yet. A face a turn's under-read ranges long comes nearer; a frontal one keeps
+    its IPD range, and one whose face is shorter than typical is not ranged short."""
     gate = (PRIOR_NEARER_FROM, PRIOR_NEARER_TO)
     return ranged_eyes(pose, FACE_HEIGHT * pose.ipd, gate)[0]
 

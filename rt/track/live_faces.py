@@ -39,6 +39,7 @@ import math
 import cv2
 import numpy as np
 
+from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.boxes import overlaps
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 
@@ -68,12 +69,14 @@ class LiveFaces:
     """The faces of each live frame (the module's description); ``detect`` as
     :meth:`YuNetDetector.detect`."""
 
-    def __init__(self, config: YuNetConfig | None = None, scale: float = SCALE) -> None:
+    def __init__(
+        self, config: YuNetConfig | None = None, scale: float = SCALE, device: Device | None = None
+    ) -> None:
         self.config = config or YuNetConfig()
         self.scale = scale
-        self.frame_detector = YuNetDetector(self.config)
+        self.frame_detector = YuNetDetector(self.config, device=device)
         # a network of its own: the tiles keep one input size, the half frame another
-        self.tile_detector = YuNetDetector(self.config)
+        self.tile_detector = YuNetDetector(self.config, device=device)
         self.path = self.frame_detector.path
         self._followed = np.zeros((0, 4))  # boxes of the last frame's faces
         self.tiles_searched = 0

@@ -135,7 +135,11 @@ class Pipeline:
         if options.detector_kind == "yunet":
             if not options.ipd > 0:
                 raise ValueError(f"the interpupillary distance must be > 0 m, got {options.ipd}")
-            self.yunet = LiveFaces(options.yunet) if background else YuNetDetector(options.yunet)
+            self.yunet = (
+                LiveFaces(options.yunet, device=self.device)
+                if background
+                else YuNetDetector(options.yunet, device=self.device)
+            )
             log.info("face detector: YuNet (%s), distance from the eyes at IPD %.1f mm",
                      self.yunet.path.name, 1000 * options.ipd)  # fmt: skip
             return

@@ -13,19 +13,25 @@ from __future__ import annotations
 
 import hashlib
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.boxes import overlaps
 from viewcomp.rt.track.faces import DetectorError
+from viewcomp.rt.track.rectify import View
 
 log = logging.getLogger(__name__)
 
 MODEL_PATH = Path(__file__).resolve().parent / "models" / "face_detection_yunet_2023mar.onnx"
 MODEL_SHA256 = "8f2383e4dd3cfbb4553ea8718107fc0423210dc964f9f4280604804ed2552fa4"
+# A refinement crop reaches this many face sizes each side of the face's centre (a tighter
+# one reads turns worse).
+CONTEXT = 2.0
 
 
 def check_model(path: str | Path = MODEL_PATH, sha256: str = MODEL_SHA256) -> Path:
@@ -131,10 +137,21 @@ class YuNetConfig:
 
 
 class YuNetDetector:
-    """YuNet on 8-bit BGR frames of any size. Not thread-safe: one per thread."""
+    """YuNet on 8-bit BGR frames of any size. Not thread-safe: one per thread.
 
-    def __init__(self, config: YuNetConfig | None = None, path: str | Path = MODEL_PATH) -> None:
+    With ``device`` (the tracking camera at the frames' resolution) a face is refined in a
+    view pointed at it (:class:`~viewcomp.rt.track.rectify.View`: seen square-on, as in the
+    middle of the picture); without, in a plain enlarged crop of the frame (a face far off
+    the axis of a wide-angle camera is then seen stretched)."""
+
+    def __init__(
+        self,
+        config: YuNetConfig | None = None,
+        path: str | Path = MODEL_PATH,
+        device: Device | None = None,
+    ) -> None:
         self.config = config or YuNetConfig()
+        self.device = device
         self.path = check_model(path)
         if not hasattr(cv2, "FaceDetectorYN"):
             raise DetectorError(
@@ -156,18 +173,36 @@ class YuNetDetector:
         )
         self._crop_size = (320, 320)
 
-    def refine(self, frame: np.ndarray, box: np.ndarray) -> np.ndarray | None:
-        """(15,) box, landmarks and score of the face in ``box`` (x, y, w, h pixels) found
-        again in a crop around it enlarged so the box is ``refine_box_px`` wide (frame
-        pixels), or None when the crop does not find it."""
+    def _crop(
+        self, frame: np.ndarray, box: np.ndarray
+    ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """The refinement crop of ``box`` (x, y, w, h frame pixels): ``CONTEXT`` box sizes
+        each side of its centre, the box ``refine_box_px`` wide; and the map from the crop's
+        pixels (M, 2) to the frame's."""
         c = self.config
+        if self.device is not None:
+            if frame.shape[1::-1] != tuple(self.device.resolution):
+                raise ValueError(
+                    f"a {frame.shape[1]}x{frame.shape[0]} frame for a tracking camera of "
+                    f"{self.device.resolution[0]}x{self.device.resolution[1]} pixels"
+                )
+            view = View.of_box(self.device, box, c.refine_box_px, CONTEXT)
+            return view.image(frame), view.to_frame
         h, w = frame.shape[:2]
-        side = 2.0 * max(box[2], box[3])  # half the crop (a tighter one reads turns worse)
+        side = CONTEXT * max(box[2], box[3])
         cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
         x0, y0 = int(max(0, cx - side)), int(max(0, cy - side))
         x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))
         k = c.refine_box_px / max(box[2], 1.0)
         crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+        return crop, lambda uv: np.asarray(uv, np.float64) / k + [x0, y0]
+
+    def refine(self, frame: np.ndarray, box: np.ndarray) -> np.ndarray | None:
+        """(15,) box, landmarks and score of the face in ``box`` (x, y, w, h pixels) found
+        again in its refinement crop (:meth:`_crop`: a view pointed at it with a ``device``),
+        in frame pixels (the box: the one around its corners), or None when the crop does
+        not find it or finds another face."""
+        crop, to_frame = self._crop(frame, box)
         size = (crop.shape[1], crop.shape[0])
         if size != self._crop_size:
             self.crop_net.setInputSize(size)
@@ -176,15 +211,16 @@ class YuNetDetector:
         if found is None or len(found) == 0:
             return None
         f = np.asarray(found, np.float64).reshape(-1, 15)
-        centres = f[:, :2] + f[:, 2:4] / 2
-        i = int(np.argmin(np.hypot(*(centres / k + [x0, y0] - [cx, cy]).T)))
-        out = f[i].copy()
-        out[:14] /= k
-        out[[0, *range(4, 14, 2)]] += x0  # x of the box and of the landmarks
-        out[[1, *range(5, 14, 2)]] += y0
-        if np.hypot(*(out[:2] + out[2:4] / 2 - [cx, cy])) > 0.3 * box[2]:
+        centre = np.array([box[0] + box[2] / 2, box[1] + box[3] / 2])
+        centres = to_frame(f[:, :2] + f[:, 2:4] / 2)
+        i = int(np.argmin(np.hypot(*(centres - centre).T)))
+        if np.hypot(*(centres[i] - centre)) > 0.3 * box[2]:
             return None  # another face
-        return out
+        x, y, bw, bh = f[i, :4]
+        corners = to_frame(np.array([[x, y], [x + bw, y], [x, y + bh], [x + bw, y + bh]]))
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        marks = to_frame(f[i, 4:14].reshape(5, 2)).ravel()
+        return np.concatenate([lo, hi - lo, marks, f[i, 14:15]])
 
     def follow(self, frame: np.ndarray, boxes: np.ndarray, taken: np.ndarray) -> np.ndarray:
         """(M, 15) box, landmarks and score of the faces of ``boxes`` (K, 4) (where faces were
