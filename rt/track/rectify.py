@@ -3,8 +3,9 @@
 A wide-angle camera stretches what lies off its axis: a face at angle t from the axis is
 imaged 1/cos t wider along the radius than across it (1.4 at the edge of a 90-degree
 webcam), and a detector trained on faces in the middle of photographs misplaces the
-landmarks of a stretched one (YuNet read the eyes of faces 35-60 degrees aside up to 9 %
-close together: ranged 9 % far). A :class:`View` is a pinhole camera at the tracking
+landmarks of a stretched one (in plain crops YuNet ranged frontal faces 25-60 degrees aside
+1-4 % farther than faces in the middle, median, one person's up to 9 %; docs/INTERFACES.md).
+A :class:`View` is a pinhole camera at the tracking
 camera's centre whose axis passes through the face, with the camera's roll: its image is
 the frame resampled along the same rays (lens distortion included), so the face is seen as
 if in the middle of the picture, at the scale asked; its pixels map back to the frame's
