@@ -16,10 +16,17 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
 - a face, once found (by either search), is followed frame by frame in a crop around where
   it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the searches miss it,
   until a crop no longer finds it;
+- a small face the searches score under the threshold is looked at again in its crop
+  (``YuNetConfig.candidate``); where the crop refused one, less and less often
+  (:class:`~viewcomp.rt.track.refusals.Refusals`: a pattern of the room taken for a face
+  on every frame would otherwise cost a crop on every frame);
 - a newcomer's first reading is the search's own: its refinement crop (about 0.7 megapixels,
   more than the half frame and a tile together) waits for its second frame, and a frame that
   found a newcomer leaves its tile to the next one, so the first eye reaches the player about
-  a frame's work sooner. That reading is marked ``coarse`` (the tracker takes no face height
+  a frame's work sooner. A newcomer the half-resolution search scores under the threshold
+  (about 2-2.5 m away) is looked at again in a crop at the frame's own resolution first (a
+  tenth of the refinement crop's pixels), and kept with that reading where it is a face
+  there. That reading is marked ``coarse`` (the tracker takes no face height
   from it, knows the face's next reading by its box and starts afresh from it): newcomers at
   0.8-3.5 m, 60-120 degrees, are within 10 cm and 10 % in about 70 % of first readings
   (distance error median 6 %, at most 21 %) against 97 % refined (docs/BENCHMARKS.md).
@@ -41,6 +48,7 @@ import numpy as np
 
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.boxes import overlaps
+from viewcomp.rt.track.refusals import Refusals
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 
 SCALE = 0.5  # the per-frame search's resize factor
@@ -74,9 +82,11 @@ class LiveFaces:
     ) -> None:
         self.config = config or YuNetConfig()
         self.scale = scale
-        self.frame_detector = YuNetDetector(self.config, device=device)
+        # where the second look refused a candidate, in either search (the frame's pixels)
+        self.refusals = Refusals()
+        self.frame_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
         # a network of its own: the tiles keep one input size, the half frame another
-        self.tile_detector = YuNetDetector(self.config, device=device)
+        self.tile_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
         self.path = self.frame_detector.path
         self._followed = np.zeros((0, 4))  # boxes of the last frame's faces
         self.tiles_searched = 0
@@ -95,6 +105,7 @@ class LiveFaces:
         if follow is not None:
             self._followed = np.concatenate([self._followed, np.reshape(follow, (-1, 4))])
         known = self._followed
+        self.refusals.tick()
         faces = self.frame_detector.detect(image, self.scale, refine_near=known)
         self._frames += 1
         due = not len(known) or self._frames % TRACKING_EVERY == 0

@@ -24,6 +24,7 @@ from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.boxes import overlaps
 from viewcomp.rt.track.faces import DetectorError
 from viewcomp.rt.track.rectify import View
+from viewcomp.rt.track.refusals import Refusals
 
 log = logging.getLogger(__name__)
 
@@ -142,16 +143,21 @@ class YuNetDetector:
     With ``device`` (the tracking camera at the frames' resolution) a face is refined in a
     view pointed at it (:class:`~viewcomp.rt.track.rectify.View`: seen square-on, as in the
     middle of the picture); without, in a plain enlarged crop of the frame (a face far off
-    the axis of a wide-angle camera is then seen stretched)."""
+    the axis of a wide-angle camera is then seen stretched). With ``refusals`` (one per
+    camera, ticked once a frame: :class:`~viewcomp.rt.track.refusals.Refusals`) a place
+    where the crop refused an unsure candidate is looked at less and less often; without,
+    every time (each frame on its own: files, tests)."""
 
     def __init__(
         self,
         config: YuNetConfig | None = None,
         path: str | Path = MODEL_PATH,
         device: Device | None = None,
+        refusals: Refusals | None = None,
     ) -> None:
         self.config = config or YuNetConfig()
         self.device = device
+        self.refusals = refusals
         self.path = check_model(path)
         if not hasattr(cv2, "FaceDetectorYN"):
             raise DetectorError(
@@ -174,35 +180,39 @@ class YuNetDetector:
         self._crop_size = (320, 320)
 
     def _crop(
-        self, frame: np.ndarray, box: np.ndarray
+        self, frame: np.ndarray, box: np.ndarray, box_px: float | None = None
     ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
         """The refinement crop of ``box`` (x, y, w, h frame pixels): ``CONTEXT`` box sizes
-        each side of its centre, the box ``refine_box_px`` wide; and the map from the crop's
-        pixels (M, 2) to the frame's."""
-        c = self.config
+        each side of its centre, the box ``box_px`` wide (None: ``refine_box_px``); and the
+        map from the crop's pixels (M, 2) to the frame's."""
+        if box_px is None:
+            box_px = self.config.refine_box_px
         if self.device is not None:
             if frame.shape[1::-1] != tuple(self.device.resolution):
                 raise ValueError(
                     f"a {frame.shape[1]}x{frame.shape[0]} frame for a tracking camera of "
                     f"{self.device.resolution[0]}x{self.device.resolution[1]} pixels"
                 )
-            view = View.of_box(self.device, box, c.refine_box_px, CONTEXT)
+            view = View.of_box(self.device, box, box_px, CONTEXT)
             return view.image(frame), view.to_frame
         h, w = frame.shape[:2]
         side = CONTEXT * max(box[2], box[3])
         cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
         x0, y0 = int(max(0, cx - side)), int(max(0, cy - side))
         x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))
-        k = c.refine_box_px / max(box[2], 1.0)
+        k = box_px / max(box[2], 1.0)
         crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
         return crop, lambda uv: np.asarray(uv, np.float64) / k + [x0, y0]
 
-    def refine(self, frame: np.ndarray, box: np.ndarray) -> np.ndarray | None:
+    def refine(
+        self, frame: np.ndarray, box: np.ndarray, box_px: float | None = None
+    ) -> np.ndarray | None:
         """(15,) box, landmarks and score of the face in ``box`` (x, y, w, h pixels) found
-        again in its refinement crop (:meth:`_crop`: a view pointed at it with a ``device``),
-        in frame pixels (the box: the one around its corners), or None when the crop does
-        not find it or finds another face."""
-        crop, to_frame = self._crop(frame, box)
+        again in its refinement crop (:meth:`_crop`: a view pointed at it with a ``device``;
+        the box ``box_px`` pixels wide in it, None: ``refine_box_px``), in frame pixels (the
+        box: the one around its corners), or None when the crop does not find it or finds
+        another face."""
+        crop, to_frame = self._crop(frame, box, box_px)
         size = (crop.shape[1], crop.shape[0])
         if size != self._crop_size:
             self.crop_net.setInputSize(size)
@@ -221,6 +231,27 @@ class YuNetDetector:
         lo, hi = corners.min(axis=0), corners.max(axis=0)
         marks = to_frame(f[i, 4:14].reshape(5, 2)).ravel()
         return np.concatenate([lo, hi - lo, marks, f[i, 14:15]])
+
+    def _second_look(
+        self, frame: np.ndarray, box: np.ndarray, quick: bool
+    ) -> tuple[np.ndarray | None, bool]:
+        """A small face the search scored under ``score`` at ``box`` (x, y, w, h pixels)
+        looked at again: (its row (15,), whether that reading is coarse) where a crop finds
+        a face there, else (None, False). With ``quick`` (a newcomer the search saw at
+        reduced resolution) first in a crop at the frame's own resolution (a few times
+        smaller than the refinement's: a reading as coarse as a full-resolution search's);
+        then in the refinement crop. Where ``refusals`` says the refinement crop refused one
+        there lately, not at all."""
+        seen = self.refusals
+        if seen is not None and not seen.due(box):
+            return None, False
+        row = self.refine(frame, box, float(box[2])) if quick else None
+        coarse = row is not None
+        if row is None:
+            row = self.refine(frame, box)
+        if seen is not None:
+            seen.refused(box) if row is None else seen.found(box)
+        return row, coarse
 
     def follow(self, frame: np.ndarray, boxes: np.ndarray, taken: np.ndarray) -> np.ndarray:
         """(M, 15) box, landmarks and score of the faces of ``boxes`` (K, 4) (where faces were
@@ -295,8 +326,11 @@ class YuNetDetector:
         boxes) only the small faces overlapping one of them by more than 0.3 IoU are
         refined; the others keep the search's landmarks (``Faces.coarse``). Faces a region's
         edge cuts (:func:`cut`) are left out: their landmarks are a part face's. A small face
-        scored under ``score`` (from ``candidate``) is kept only if its refinement crop finds
-        it, and then with the crop's reading (never coarse); a large one is left out."""
+        scored under ``score`` (from ``candidate``) is kept only if a crop finds it, and then
+        with the crop's reading (:meth:`_second_look`: coarse only for a newcomer that a
+        search at reduced ``scale`` found and a crop at the frame's own resolution confirms);
+        a large one is left out, and so is one where ``refusals`` says the refinement crop
+        refused one lately."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -326,21 +360,19 @@ class YuNetDetector:
         coarse = np.zeros(len(f), bool)
         keep = np.ones(len(f), bool)
         for i, row in enumerate(f):  # small faces: landmarks again from an enlarged crop
-            unsure = row[14] < c.score
             if np.linalg.norm(row[6:8] - row[4:6]) >= c.refine_px:
-                keep[i] = not unsure  # a large face the crop would only shrink
+                keep[i] = row[14] >= c.score  # a large face the crop would only shrink
                 continue
-            if not unsure and refine_near is not None and not overlaps(row[:4], refine_near):
+            newcomer = refine_near is not None and not overlaps(row[:4], refine_near)
+            if row[14] < c.score:
+                again, quick = self._second_look(frame, row[:4].copy(), newcomer and scale < 1)
+                keep[i] = again is not None and not overlaps(again[:4], f[:i][keep[:i], :4])
+                if again is not None and keep[i]:
+                    row[:], coarse[i] = again, quick
+            elif newcomer:
                 coarse[i] = True
-                continue
-            better = self.refine(frame, row[:4].copy())
-            if not unsure:
-                if better is not None:
-                    row[:14] = better[:14]
-            elif better is not None and not overlaps(better[:4], f[:i][keep[:i], :4]):
-                row[:] = better  # found again: the crop's reading and score
-            else:
-                keep[i] = False
+            elif (better := self.refine(frame, row[:4].copy())) is not None:
+                row[:14] = better[:14]
         order = np.argsort(-f[keep, 14], kind="stable")  # strongest first again
         f, coarse = f[keep][order], coarse[keep][order]
         marks = f[:, 4:14].reshape(-1, 5, 2)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from viewcomp.calib.world.eye import eye_from_angle
+from viewcomp.rt.track.anatomy import head_pose
 from viewcomp.rt.track.live_faces import (
     OVERLAP,
     SCALE,
@@ -18,7 +19,7 @@ from viewcomp.rt.track.live_faces import (
 )
 from viewcomp.rt.track.simscene import finish, render_person
 from viewcomp.rt.track.simwalk import astronaut_person, background, walk_camera
-from viewcomp.rt.track.yunet import YuNetDetector
+from viewcomp.rt.track.yunet import YuNetConfig, YuNetDetector
 
 
 def _frame(eyes: list[np.ndarray], seed: int = 0) -> np.ndarray:
@@ -86,9 +87,9 @@ def test_a_newcomer_costs_its_first_frame_no_crop_and_no_tile(monkeypatch):
     crops = []
     refine = YuNetDetector.refine
 
-    def counted(self, frame, box):
+    def counted(self, frame, box, box_px=None):
         crops.append(box)
-        return refine(self, frame, box)
+        return refine(self, frame, box, box_px)
 
     monkeypatch.setattr(YuNetDetector, "refine", counted)
     live = LiveFaces()
@@ -104,6 +105,40 @@ def test_a_newcomer_costs_its_first_frame_no_crop_and_no_tile(monkeypatch):
     fresh = LiveFaces()
     known = fresh.detect(_frame([NEAR], 3), follow=second.boxes)
     assert known.coarse.tolist() == [False] and len(crops) == 1
+
+
+def test_a_newcomer_the_half_frame_scores_low_is_confirmed_in_its_own_pixels(monkeypatch):
+    """A newcomer 2.2 m away that the half-resolution search scores under 0.6 (a candidate,
+    0.2-0.6): its first frame looks at it again in a crop at the frame's own resolution
+    (the box as wide as it is), not in the refinement crop (several times the pixels), and
+    keeps that coarse reading; the second frame refines it."""
+    dev = walk_camera()
+    far = eye_from_angle(82.2, 2.2, 0.15)
+    truth = float(np.linalg.norm(far - np.asarray(dev.position)))
+    first_frame = _frame([far], 1)
+    sure = YuNetDetector(YuNetConfig(candidate=0.6))
+    assert len(sure.detect(first_frame, SCALE, refine_near=np.zeros((0, 4)))) == 0
+    crops = []
+    refine = YuNetDetector.refine
+
+    def counted(self, frame, box, box_px=None):
+        crops.append(None if box_px is None else box_px / box[2])  # the box's scale
+        return refine(self, frame, box, box_px)
+
+    monkeypatch.setattr(YuNetDetector, "refine", counted)
+    live = LiveFaces(device=dev)
+    live.detect(_frame([], 0))
+    crops.clear()
+    first = live.detect(first_frame)
+    assert len(first) == 1 and first.coarse.tolist() == [True]
+    assert crops == [1.0]  # one crop, at the frame's resolution
+    ratio = head_pose(dev, first.landmarks).range[0] / truth
+    assert abs(ratio - 1.0) < 0.15, ratio  # coarse: a newcomer's first reading
+    crops.clear()
+    second = live.detect(_frame([far], 2))
+    assert len(second) == 1 and second.coarse.tolist() == [False] and None in crops
+    ratio = head_pose(dev, second.landmarks).range[0] / truth
+    assert abs(ratio - 1.0) < 0.1, ratio
 
 
 def test_the_tiles_cover_the_frame_each_face_whole_in_one():
