@@ -202,7 +202,8 @@ class YuNetDetector:
         x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))
         k = box_px / max(box[2], 1.0)
         crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
-        return crop, lambda uv: np.asarray(uv, np.float64) / k + [x0, y0]
+        # pixel centres at integers in both (as cv2.resize maps them)
+        return crop, lambda uv: (np.asarray(uv, np.float64) + 0.5) / k - 0.5 + [x0, y0]
 
     def refine(
         self, frame: np.ndarray, box: np.ndarray, box_px: float | None = None

@@ -46,6 +46,21 @@ def test_a_view_maps_back_to_the_frame_exactly(distortion):
         np.testing.assert_allclose(view.to_frame(c[None])[0], p, atol=0.06)
 
 
+def test_a_plain_crop_maps_back_to_the_frame_exactly():
+    """Without a camera the crop is a plain enlargement (4 times here): the dots' centroids
+    in it map back within 0.06 pixels (pixel centres at integers in both, as cv2.resize
+    takes them; dividing alone would be 0.375 pixels off)."""
+    crop, to_frame = YuNetDetector()._crop(_dots((720, 1280), DOTS), BOX)
+    image = crop.astype(np.float64)
+    for p in DOTS[:3]:  # the ones inside the crop (2 box sizes each side of the centre)
+        q = (p - BOX[:2] + 2.0 * BOX[3] - BOX[2:] / 2 + 0.5) * 4.0 - 0.5  # its place, coarsely
+        x0, y0 = int(q[0]) - 15, int(q[1]) - 15
+        w = image[y0 : y0 + 31, x0 : x0 + 31]
+        gy, gx = np.mgrid[y0 : y0 + 31, x0 : x0 + 31]
+        c = np.array([(w * gx).sum(), (w * gy).sum()]) / w.sum()
+        np.testing.assert_allclose(to_frame(c[None])[0], p, atol=0.06)
+
+
 def test_the_homography_and_the_rays_map_resample_alike():
     """A lens without distortion is warped by one homography; the same lens given as
     zero distortion goes through the rays' map on a grid: the two views of a textured frame
