@@ -17,7 +17,8 @@
   easing to the default eye.
 - ``publish``: where eyes go: ``eye``/``eyes`` lines, OSC, a player's input queue.
 - ``run``: the loop from frames to publishers, and its thread for ``play --track-camera``.
-- ``simscene``: photographs of people drawn as 2.5-D heads placed by their eyes (tests).
+- ``simscene``: photographs of people drawn as 2.5-D heads placed by their eyes, seen by an
+  ideal camera or the emulated webcam (tests).
 - ``simwalk``: what the tracking camera sees of a face walking at known 3-D positions.
 - ``simtrack``: that walk tracked by the pipeline, beside its truth.
 """

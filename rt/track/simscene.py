@@ -20,6 +20,10 @@ The nose ridge rises ``nose_depth`` (0.4 IPD, the tracker's default) above the f
 and the head's roundness adds about 0.07 IPD at the centre line, so the nose tip of a
 frontal photograph stands 0.46-0.47 IPD in front of the eyes: from exact landmarks the
 tracker reads a head turned 45 degrees 9-10 % short (docs/INTERFACES.md, "Measured").
+
+The frame is delivered by an ideal camera (:func:`finish`: a little noise, 8 bits) or by the
+calibration's emulated webcam (:func:`through_webcam`: the same sensor and processing that
+:mod:`viewcomp.calib.emu` gives the captures).
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from viewcomp.calib.emu.camera import sensor_codes, webcam_process
+from viewcomp.calib.emu.profiles import WEBCAM, CameraProfile
+from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH
 
@@ -244,3 +251,20 @@ def finish(frame: np.ndarray, rng: np.random.Generator, noise: float = 0.01) -> 
     """A float frame (0..1) as the camera delivers it: Gaussian noise of ``noise``, uint8."""
     out = frame + rng.normal(0.0, noise, frame.shape).astype(np.float32)
     return np.clip(out * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
+def through_webcam(
+    frame: np.ndarray, rng: np.random.Generator, profile: CameraProfile = WEBCAM
+) -> np.ndarray:
+    """A float frame (0..1, BGR, sRGB-encoded: what an ideal camera delivers) as
+    ``profile``'s camera delivers it, uint8 BGR: decoded to relative light, blurred by its
+    optics, sampled by its sensor (:func:`viewcomp.calib.emu.camera.sensor_codes`: a Bayer
+    mosaic, shot and read noise from ``rng``, its ADC) and processed as the calibration's
+    emulated webcam processes its frames (:func:`~viewcomp.calib.emu.camera.webcam_process`:
+    demosaic, tone curve, denoise, sharpen, 8 bits, MJPEG)."""
+    light = parse_response("srgb").decode(np.clip(frame[:, :, ::-1], 0.0, 1.0))
+    light = np.ascontiguousarray(light, np.float32)
+    if profile.blur_px > 0:
+        light = cv2.GaussianBlur(light, (0, 0), profile.blur_px)
+    raw = sensor_codes(light, profile, 1.0, rng)
+    return np.ascontiguousarray(webcam_process(raw, np.ones(3, np.float32), profile)[:, :, ::-1])

@@ -18,8 +18,10 @@ interpupillary distance at a known 3-D eye midpoint in a simulated 1280x720 webc
 wide, the screen's top edge), facing the camera or turned by a known yaw (25 or 45 degrees
 either way), or facing a point of the picture below the camera ("watching": what a viewer
 does, the head nodding against the camera by up to 30 degrees), so the ranging
-(:mod:`viewcomp.rt.track.anatomy`) is judged against an anatomical truth. Run this file as a
-script for the table per person and condition.
+(:mod:`viewcomp.rt.track.anatomy`) is judged against an anatomical truth. Frames come from an
+ideal camera with a little noise, or ("webcam") through the calibration's emulated webcam
+(:func:`viewcomp.rt.track.simscene.through_webcam`). Run this file as a script for the table
+per person and condition.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import pytest
 
 from viewcomp.rt.track.anatomy import head_pose
 from viewcomp.rt.track.run import Pipeline, TrackOptions
-from viewcomp.rt.track.simscene import Person, finish, posed, render_person
+from viewcomp.rt.track.simscene import Person, finish, posed, render_person, through_webcam
 from viewcomp.rt.track.simwalk import background, walk_camera
 from viewcomp.rt.track.source import ArraySource
 from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
@@ -71,6 +73,9 @@ CONDITIONS = {
     # facing a point of the picture (x within 0.5 m of the screen's centre, y within 0.3 m),
     # not the camera above it: the head nods against the camera by up to 30 degrees
     "watching": {"watch": (0.5, 0.3)},
+    # facing the camera, seen through the calibration's emulated webcam (calib.emu: optics,
+    # a Bayer sensor's noise, denoising, sharpening, MJPEG at 80) instead of an ideal camera
+    "webcam": {"webcam": True},
 }
 
 
@@ -117,7 +122,11 @@ def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.nd
                 who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
                 f = render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
                                   occluder=kw.get("occluder"), look=look_at(kw, rng))  # fmt: skip
-                faces = det.detect(finish(f, rng, kw.get("noise", 0.01)))
+                if kw.get("webcam"):
+                    frame = through_webcam(f, rng)
+                else:
+                    frame = finish(f, rng, kw.get("noise", 0.01))
+                faces = det.detect(frame)
                 if len(faces):  # the eye a face that starts a track is given
                     pose = head_pose(dev, faces.landmarks[:1])
                     got[i] = EyeTracker().update(pose.eyes, faces.boxes[:1], 0.0, pose)[0]
@@ -272,7 +281,7 @@ def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
             n,
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="measured 89 % (astronaut), 92 % (hopper), 76 % (luispedro) of all "
+                reason="measured 91 % (astronaut), 92 % (hopper), 79 % (luispedro) of all "
                 "frames: turns of 25-45 degrees, occlusion (docs/INTERFACES.md)",
             ),
         )
@@ -291,12 +300,13 @@ def test_within_the_tolerances_in_95_percent_of_frames(measured, name):
 @pytest.mark.parametrize("name", NAMES)
 def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
     """A guard below the issue's 95 % (which is the expected failure above): frontal and
-    dim faces are all found, and at least 80 % within 10 cm in x and y and 10 % in distance
-    (measured: astronaut 100 % and 92 %, hopper 92 % and 100 %, luispedro 100 % and 83 %; the
-    misses are far and far aside, where 10 cm in x is 3 % of the distance). The astronaut's
-    dim face at 3.4 m, which the frame scores about 0.6 (found or not by the host's floating
-    point before), is found by the second look in its crop."""
-    for cond in ("frontal", "dim"):
+    dim faces, and frontal ones through the emulated webcam, are all found, and at least 80 %
+    within 10 cm in x and y and 10 % in distance (measured: astronaut 100 %, 92 %, 100 %;
+    hopper 92 %, 100 %, 92 %; luispedro 100 %, 83 %, 92 %; the misses are far and far aside,
+    where 10 cm in x is 3 % of the distance). The astronaut's dim face at 3.4 m, which the
+    frame scores about 0.6 (found or not by the host's floating point before), is found by
+    the second look in its crop."""
+    for cond in ("frontal", "dim", "webcam"):
         s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
         assert s["found"] == 1.0 and s["within"] >= 0.8, (cond, s)
 
