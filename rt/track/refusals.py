@@ -72,7 +72,8 @@ class Refusals:
 
     def due(self, box: np.ndarray) -> bool:
         """Whether a candidate at ``box`` (4,) is to be looked at on this frame (no refused
-        place there, or its wait is over)."""
+        place there, or its wait is over); a place asked about counts as offered on this
+        frame (it is remembered while candidates keep coming there)."""
         place = self._at(box)
         if place is None:
             return True

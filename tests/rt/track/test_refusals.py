@@ -108,7 +108,7 @@ def test_a_room_that_looks_like_a_face_costs_a_crop_now_and_then(monkeypatch):
     assert counted[1] == 5, counted
 
 
-def test_a_far_face_behind_a_hand_is_still_found_live(monkeypatch):
+def test_a_far_face_behind_a_hand_is_still_found_live():
     """Viewers 2.5-3 m away with mouth and chin covered walk into the room of the test
     above, its false candidate refused a few times already: each is found within one round
     of the tiles (4 frames) and in every frame after (the refusals hold the false place,
