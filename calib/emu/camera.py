@@ -359,12 +359,9 @@ class EmulatedCamera:
             luts = self.projector.model.drive_luts(np.maximum(t0, a), np.minimum(t1, b))
             pieces.append((s.index, s.image, luts))
         integral = scene.integrate(self.screens[rec.screen], pieces, rec.exposure)
-        sig = np.asarray(integral * np.float32(self.profile.sensitivity), np.float32)
-        if self.profile.blur_px > 0:
-            sig = np.asarray(
-                cv2.GaussianBlur(sig, (0, 0), self.profile.blur_px, borderType=cv2.BORDER_REFLECT),
-                np.float32,
-            )
+        sig = optics(
+            np.asarray(integral * np.float32(self.profile.sensitivity), np.float32), self.profile
+        )
         self._signals[key] = sig
         while len(self._signals) > SIGNAL_CACHE:
             self._signals.popitem(last=False)
@@ -382,19 +379,37 @@ class EmulatedCamera:
 # -- the sensor and the image processing (signal -> frame) ------------------------------------
 
 
+def optics(sig: np.ndarray, p: CameraProfile) -> np.ndarray:
+    """The relative signal ``sig`` (Hc, Wc, 3) float32 as ``p``'s lens images it: blurred by
+    ``blur_px`` (a Gaussian, edges reflected), float32."""
+    if p.blur_px <= 0:
+        return sig
+    blurred = cv2.GaussianBlur(sig, (0, 0), p.blur_px, borderType=cv2.BORDER_REFLECT)
+    return np.asarray(blurred, np.float32)
+
+
+def develop_image(
+    sig: np.ndarray, p: CameraProfile, gain: float, wb: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """The image a camera of profile ``p`` delivers from the relative signal ``sig`` (Hc, Wc,
+    3), after its optics: the sensor's codes at ``gain`` (:func:`sensor_codes`, noise from
+    ``rng``), then raw (mono, (Hc, Wc) uint16), demosaiced (linear colour, (Hc, Wc, 3)
+    uint16) or processed as a webcam does (:func:`webcam_process`, white balance gains ``wb``
+    (3,): (Hc, Wc, 3) uint8 RGB)."""
+    raw = sensor_codes(sig, p, gain, rng)
+    if not p.bayer:
+        return raw
+    if p.linear:
+        return cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB)  # bilinear; RGGB from row 0
+    return webcam_process(raw, wb, p)
+
+
 def develop(sig: np.ndarray, rec: _Exposure, p: CameraProfile, seed: int) -> Frame:
     """The frame a camera of profile ``p`` delivers from the noise-free relative signal
-    ``sig`` (Hc, Wc, 3) of exposure ``rec``: the sensor's codes (:func:`sensor_codes`, noise
-    drawn from ``seed`` and the frame's sequence number), then raw (mono), demosaiced (linear
-    colour) or processed as a webcam does (:func:`webcam_process`)."""
+    ``sig`` (Hc, Wc, 3) of exposure ``rec`` (:func:`develop_image`, noise drawn from ``seed``
+    and the frame's sequence number)."""
     rng = np.random.default_rng([seed, rec.sequence, 0x5E])
-    raw = sensor_codes(sig, p, rec.gain, rng)
-    if not p.bayer:
-        image = raw
-    elif p.linear:
-        image = cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB)  # bilinear; RGGB from row 0
-    else:
-        image = webcam_process(raw, rec.wb, p)
+    image = develop_image(sig, p, rec.gain, rec.wb, rng)
     return Frame(
         image=image,
         timestamp=rec.start,

@@ -95,5 +95,7 @@ class Refusals:
 
     def found(self, box: np.ndarray) -> None:
         """The crop found a face at ``box`` (4,): the places it overlaps are forgotten."""
-        b = np.asarray(box, np.float64)
-        self._places = [p for p in self._places if float(iou(b, p.box[None])[0]) <= SAME_FACE]
+        if not self._places:
+            return
+        overlap = iou(np.asarray(box, np.float64), np.stack([p.box for p in self._places]))
+        self._places = [p for p, o in zip(self._places, overlap, strict=True) if o <= SAME_FACE]

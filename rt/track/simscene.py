@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from viewcomp.calib.emu.camera import sensor_codes, webcam_process
-from viewcomp.calib.emu.profiles import WEBCAM, CameraProfile
+from viewcomp.calib.emu.camera import develop_image, optics
+from viewcomp.calib.emu.profiles import WEBCAM
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH
@@ -253,18 +253,14 @@ def finish(frame: np.ndarray, rng: np.random.Generator, noise: float = 0.01) -> 
     return np.clip(out * 255.0 + 0.5, 0, 255).astype(np.uint8)
 
 
-def through_webcam(
-    frame: np.ndarray, rng: np.random.Generator, profile: CameraProfile = WEBCAM
-) -> np.ndarray:
-    """A float frame (0..1, BGR, sRGB-encoded: what an ideal camera delivers) as
-    ``profile``'s camera delivers it, uint8 BGR: decoded to relative light, blurred by its
-    optics, sampled by its sensor (:func:`viewcomp.calib.emu.camera.sensor_codes`: a Bayer
-    mosaic, shot and read noise from ``rng``, its ADC) and processed as the calibration's
-    emulated webcam processes its frames (:func:`~viewcomp.calib.emu.camera.webcam_process`:
-    demosaic, tone curve, denoise, sharpen, 8 bits, MJPEG)."""
+def through_webcam(frame: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A float frame (0..1, BGR, sRGB-encoded: what an ideal camera delivers) as the
+    calibration's emulated webcam (:data:`viewcomp.calib.emu.profiles.WEBCAM`) delivers it,
+    uint8 BGR: decoded to relative light, then the emulator's own optics and development
+    (:func:`viewcomp.calib.emu.camera.optics`, :func:`~viewcomp.calib.emu.camera.develop_image`:
+    the lens' blur, a Bayer sensor's shot and read noise from ``rng``, demosaicing, tone
+    curve, denoising, sharpening, 8 bits, MJPEG), at unit gain and neutral white balance."""
     light = parse_response("srgb").decode(np.clip(frame[:, :, ::-1], 0.0, 1.0))
-    light = np.ascontiguousarray(light, np.float32)
-    if profile.blur_px > 0:
-        light = cv2.GaussianBlur(light, (0, 0), profile.blur_px)
-    raw = sensor_codes(light, profile, 1.0, rng)
-    return np.ascontiguousarray(webcam_process(raw, np.ones(3, np.float32), profile)[:, :, ::-1])
+    light = optics(np.ascontiguousarray(light, np.float32), WEBCAM)
+    rgb = develop_image(light, WEBCAM, 1.0, np.ones(3, np.float32), rng)
+    return np.ascontiguousarray(rgb[:, :, ::-1])
