@@ -4,7 +4,9 @@
 - ``yunet``: faces and their landmarks (YuNet, the model shipped in ``models/``, checksummed);
   tracked faces followed in crops.
 - ``live_faces``: YuNet for a live camera: each frame at half resolution and one tile at full.
-- ``refusals``: where YuNet's second look found no face, looked at less and less often.
+- ``changes``: where a live frame changed, away from the faces known: searched first.
+- ``refusals``: where a second look (or a search where the frame changed) found no face,
+  looked at less and less often.
 - ``rectify``: a face seen square-on: a crop of a frame as a virtual camera pointed at it.
 - ``boxes``: how much two face boxes overlap.
 - ``anatomy``: a viewer's eye from the landmarks: distance from the interpupillary distance,

@@ -13,6 +13,12 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
   ``TRACKING_EVERY``-th frame while faces are followed. A far newcomer the half-resolution
   search misses is found within one round of the tiles (4 frames into an empty room), and no
   frame pays for the whole frame at full resolution;
+- where the frame changed away from the faces known (someone walked or stepped in:
+  :class:`~viewcomp.rt.track.changes.Changes`), a region of the tiles' size is searched
+  instead of the round's next tile, so a far newcomer is found in the first frame that
+  searches one; a region searched in vain gives the next search back to the round and is
+  looked at less and less often (:class:`~viewcomp.rt.track.refusals.Refusals`), so a
+  flickering screen in view, or someone with their face turned away, does not stop it;
 - a face, once found (by either search), is followed frame by frame in a crop around where
   it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the searches miss it,
   until a crop no longer finds it;
@@ -48,6 +54,7 @@ import numpy as np
 
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.boxes import overlaps
+from viewcomp.rt.track.changes import Changes
 from viewcomp.rt.track.refusals import Refusals
 from viewcomp.rt.track.yunet import Faces, YuNetConfig, YuNetDetector
 
@@ -90,6 +97,14 @@ class LiveFaces:
         self.path = self.frame_detector.path
         self._followed = np.zeros((0, 4))  # boxes of the last frame's faces
         self.tiles_searched = 0
+        # where the frame changed, away from the faces known: searched before the tiles'
+        # round; a region searched there in vain is looked at less and less often, and
+        # gives the next search to the round (a person whose face is turned away, walking,
+        # would otherwise hold the round up for as long as they move)
+        self.changes = Changes()
+        self.vain = Refusals()
+        self.changes_searched = 0
+        self._round_next = False
         self._frames = 0
         self._grid: tuple[tuple[int, int], list[tuple[int, int, int, int]]] = ((0, 0), [])
 
@@ -106,6 +121,8 @@ class LiveFaces:
             self._followed = np.concatenate([self._followed, np.reshape(follow, (-1, 4))])
         known = self._followed
         self.refusals.tick()
+        self.vain.tick()
+        self.changes.update(image)
         faces = self.frame_detector.detect(image, self.scale, refine_near=known)
         self._frames += 1
         due = not len(known) or self._frames % TRACKING_EVERY == 0
@@ -115,10 +132,20 @@ class LiveFaces:
             if self._grid[0] != (w, h):  # the frame's size: the tiles are computed once
                 self._grid = ((w, h), tiles(w, h, *TILES, OVERLAP))
             grid = self._grid[1]
-            region = grid[self.tiles_searched % len(grid)]
-            found = self.tile_detector.search_region(image, region, faces.boxes, known)
+            explained = np.concatenate([known, faces.boxes])
+            changed = None if self._round_next else self.changes.region(grid[0][2:], explained)
+            if changed is not None and self.vain.due(np.asarray(changed, np.float64)):
+                found = self.tile_detector.search_region(image, changed, faces.boxes, known)
+                place = np.asarray(changed, np.float64)
+                self.vain.found(place) if len(found) else self.vain.refused(place)
+                self._round_next = not len(found)
+                self.changes_searched += 1
+            else:
+                region = grid[self.tiles_searched % len(grid)]
+                found = self.tile_detector.search_region(image, region, faces.boxes, known)
+                self.tiles_searched += 1
+                self._round_next = False
             faces = faces.extended(found)
-            self.tiles_searched += 1
         more = Faces.from_rows(self.frame_detector.follow(image, known, faces.boxes))
         # next frame, every face of this one is followed in a crop if the searches miss it
         # (a viewer walking away beyond the half-resolution search's reach)
