@@ -139,3 +139,19 @@ def test_a_change_with_no_face_there_does_not_hold_up_the_round():
     assert 1 <= live.changes_searched <= 5
     assert live.tiles_searched + live.changes_searched == n
     assert live.tiles_searched >= n // 2
+
+
+def test_someone_moving_with_their_face_away_does_not_hold_up_the_round():
+    """A change in another corner of the frame on every frame (people moving about, facing
+    away: no face where it changed, and the same place only every fourth frame): every
+    other search is still the round's."""
+    corners = [(100, 60), (1100, 60), (100, 400), (1100, 400)]
+    live = LiveFaces()
+    n = 12
+    for k in range(n):
+        f = _frame([], k)
+        if k:
+            f = _patch(f, *corners[k % 4], 80, 300, level=200)
+        assert len(live.detect(f)) == 0
+    assert live.changes_searched >= 3  # it is looked at,
+    assert live.tiles_searched >= n // 2  # and the round goes on
