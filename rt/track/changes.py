@@ -29,7 +29,7 @@ CELL = 16  # frame pixels per cell side
 # viewer's ghost, the largest change in view, for seconds).
 RATE = 0.5
 LEVEL = 10.0  # grey levels (0-255): the least change of a cell's mean that counts
-MIN_CELLS = 2  # changed cells a group needs (a face 3 m away covers about 3 x 4 cells)
+MIN_CELLS = 2  # changed cells a group needs (a face 3 m away covers about 3 x 3 cells)
 # A known face explains the changes within BODY face widths each side of its centre, from
 # half a face above it to the frame's bottom (its head and body moving).
 BODY = 1.5

@@ -134,9 +134,8 @@ class LiveFaces:
             grid = self._grid[1]
             explained = np.concatenate([known, faces.boxes])
             changed = None if self._round_next else self.changes.region(grid[0][2:], explained)
-            if changed is not None and self.vain.due(np.asarray(changed, np.float64)):
+            if changed is not None and self.vain.due(place := np.asarray(changed, np.float64)):
                 found = self.tile_detector.search_region(image, changed, faces.boxes, known)
-                place = np.asarray(changed, np.float64)
                 self.vain.found(place) if len(found) else self.vain.refused(place)
                 self._round_next = not len(found)
                 self.changes_searched += 1

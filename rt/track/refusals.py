@@ -13,7 +13,8 @@ the next min(2^(n-1), ``max_wait``) frames (1, 2, 4, ... 32), and a candidate th
 out meanwhile; a face the crop finds there, or a place offered no more for ``forget`` frames,
 is forgotten. A persistent false candidate costs 6 crops in its first 64 frames and then one
 a second at 30 frames/s; a real face refused once (a far face behind a hand) is looked at
-again two frames later.
+again two frames later. :class:`~viewcomp.rt.track.live_faces.LiveFaces` keeps a second one
+for the regions where the frame changed and a full-resolution search there found no face.
 """
 
 from __future__ import annotations
