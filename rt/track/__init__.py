@@ -3,7 +3,8 @@
 - ``source``: frame sources: a camera device, a video file, an image sequence, memory.
 - ``yunet``: faces and their landmarks (YuNet, the model shipped in ``models/``, checksummed);
   tracked faces followed in crops.
-- ``live_faces``: YuNet for a live camera: each frame at half resolution and one tile at full.
+- ``live_faces``: YuNet for a live camera: each frame at half resolution and one tile (or
+  where it changed) at full.
 - ``changes``: where a live frame changed, away from the faces known: searched first.
 - ``refusals``: where a second look (or a search where the frame changed) found no face,
   looked at less and less often.

@@ -52,8 +52,8 @@ class TrackOptions:
     full-frame search on a worker thread (None: for a live camera and ``realtime``; a file
     processed as fast as possible stays on one thread, so its output is reproducible); with
     YuNet, a live search instead looks at each frame at half resolution and at one tile of
-    it at full resolution, and follows the faces it found in crops
-    (:mod:`viewcomp.rt.track.live_faces`).
+    it (or the region where it changed) at full resolution, and follows the faces it found
+    in crops (:mod:`viewcomp.rt.track.live_faces`).
     """
 
     detector_kind: str = "yunet"
