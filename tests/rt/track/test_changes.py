@@ -9,16 +9,24 @@ import pytest
 from viewcomp.calib.world.eye import eye_from_angle
 from viewcomp.rt.track.changes import BODY, CELL, Changes
 from viewcomp.rt.track.live_faces import OVERLAP, SCALE, TILES, LiveFaces, tiles
-from viewcomp.rt.track.simscene import finish, render_person
-from viewcomp.rt.track.simwalk import astronaut_person, background, walk_camera
+from viewcomp.rt.track.simwalk import background, render_frame, walk_camera
 from viewcomp.rt.track.yunet import YuNetDetector
 
 W, H = 1280, 720
 
 
-def _room(seed: int, noise: float = 0.02) -> np.ndarray:
-    """The tracking tests' textured room, with a webcam's noise (``noise`` of full scale)."""
-    return finish(background((W, H), 0), np.random.default_rng(seed), noise)
+def _frame(eyes: list[np.ndarray], seed: int, noise: float = 0.01) -> np.ndarray:
+    """The tracking tests' textured room with the astronaut at each eye, and noise (``noise``
+    of full scale) from ``seed``."""
+    dev = walk_camera()
+    back = background(dev.resolution, 0)
+    e = np.reshape(np.asarray(eyes, np.float64), (-1, 3))
+    return render_frame(dev, e, back, np.random.default_rng(seed), noise=noise)
+
+
+def _room(seed: int) -> np.ndarray:
+    """The room alone, with a webcam's noise."""
+    return _frame([], seed, noise=0.02)
 
 
 def _patch(frame: np.ndarray, x: int, y: int, w: int, h: int, level: int = 40) -> np.ndarray:
@@ -88,14 +96,6 @@ def test_a_single_cell_is_not_a_newcomer_and_a_new_frame_size_starts_afresh():
 def test_bad_settings_are_refused(kw):
     with pytest.raises(ValueError, match="need cell"):
         Changes(**kw)
-
-
-def _frame(eyes: list[np.ndarray], seed: int) -> np.ndarray:
-    dev = walk_camera()
-    f = background(dev.resolution, 0)
-    for e in eyes:
-        f = render_person(f, dev, astronaut_person(), e)
-    return finish(f, np.random.default_rng(seed))
 
 
 def test_a_far_newcomer_is_found_where_the_frame_changed_in_its_first_frame():
