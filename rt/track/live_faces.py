@@ -14,11 +14,14 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
   search misses is found within one round of the tiles (4 frames into an empty room), and no
   frame pays for the whole frame at full resolution;
 - where the frame changed away from the faces known (someone walked or stepped in:
-  :class:`~viewcomp.rt.track.changes.Changes`), a region of the tiles' size is searched
-  instead of the round's next tile, so a far newcomer is found in the first frame that
-  searches one; a region searched in vain gives the next search back to the round and is
-  looked at less and less often (:class:`~viewcomp.rt.track.refusals.Refusals`), so a
-  flickering screen in view, or someone with their face turned away, does not stop it;
+  :class:`~viewcomp.rt.track.changes.Changes`), a region of a quarter of a tile's pixels is
+  searched enlarged twice (``CHANGE_SCALE``: a tile's cost) instead of the round's next
+  tile, so a far newcomer is found in the first frame that searches one, also one that
+  the full-resolution search misses (2.5-3.4 m away with a hand over mouth and chin:
+  YuNet needs the face larger); a region searched in vain gives the next search back to
+  the round and is looked at less and less often
+  (:class:`~viewcomp.rt.track.refusals.Refusals`), so a flickering screen in view, or
+  someone with their face turned away, does not stop it;
 - a face, once found (by either search), is followed frame by frame in a crop around where
   it was (:meth:`YuNetDetector.refine`, at full resolution) whenever the searches miss it,
   until a crop no longer finds it;
@@ -66,6 +69,10 @@ OVERLAP = 96
 # While faces are followed, a tile is searched every this many frames (each followed face
 # costs a full-resolution crop per frame already); with nobody in view, every frame.
 TRACKING_EVERY = 3
+# Where the frame changed, a region 1 / CHANGE_SCALE of a tile's width and height is searched
+# enlarged by CHANGE_SCALE: the network's input is a tile's, and a face half the size the
+# tiles need is found (a far one partly covered).
+CHANGE_SCALE = 2.0
 
 
 def tiles(
@@ -92,8 +99,10 @@ class LiveFaces:
         # where the second look refused a candidate, in either search (the frame's pixels)
         self.refusals = Refusals()
         self.frame_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
-        # a network of its own: the tiles keep one input size, the half frame another
+        # networks of their own: the tiles keep one input size, the half frame another,
+        # the enlarged change regions a third (a tile's, to within a pixel)
         self.tile_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
+        self.change_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
         self.path = self.frame_detector.path
         self._followed = np.zeros((0, 4))  # boxes of the last frame's faces
         self.tiles_searched = 0
@@ -133,9 +142,12 @@ class LiveFaces:
                 self._grid = ((w, h), tiles(w, h, *TILES, OVERLAP))
             grid = self._grid[1]
             explained = np.concatenate([known, faces.boxes])
-            changed = None if self._round_next else self.changes.region(grid[0][2:], explained)
+            size = (round(grid[0][2] / CHANGE_SCALE), round(grid[0][3] / CHANGE_SCALE))
+            changed = None if self._round_next else self.changes.region(size, explained)
             if changed is not None and self.vain.due(place := np.asarray(changed, np.float64)):
-                found = self.tile_detector.search_region(image, changed, faces.boxes, known)
+                found = self.change_detector.search_region(
+                    image, changed, faces.boxes, known, scale=CHANGE_SCALE
+                )
                 self.vain.found(place) if len(found) else self.vain.refused(place)
                 self._round_next = not len(found)
                 self.changes_searched += 1

@@ -303,16 +303,18 @@ class YuNetDetector:
         region: tuple[int, int, int, int],
         known: np.ndarray,
         refine_near: np.ndarray | None = None,
+        scale: float = 1.0,
     ) -> Faces:
         """The faces in ``region`` (x0, y0, width, height pixels) of ``frame`` ((h, w, 3)
-        uint8 BGR) at full resolution, in the frame's pixels, but those overlapping a box of
+        uint8 BGR) at full resolution (``scale`` 1; 2: enlarged twice, so faces half the
+        size are found), in the frame's pixels, but those overlapping a box of
         ``known`` ((K, 4): faces found already) by more than 0.3 IoU and those the region's
         edge cuts (:func:`cut`; tiles overlapping by a face's size hold it whole in another
         one, and a part face's landmarks range it wrongly); small faces are refined
         in the whole frame, so a face near the region's edge keeps its context. Regions of
         one size keep the network's input size (changing it costs a set-up). ``refine_near``
         as for :meth:`detect`."""
-        return self._search(frame, 1.0, region, known, refine_near)
+        return self._search(frame, scale, region, known, refine_near)
 
     def _search(
         self,
@@ -323,7 +325,8 @@ class YuNetDetector:
         refine_near: np.ndarray | None = None,
     ) -> Faces:
         """The search of :meth:`detect` (BGR ``frame``; the whole frame, or ``region``
-        without the faces of ``known``, before any is refined); with ``refine_near`` ((K, 4)
+        without the faces of ``known``, before any is refined; resized by ``scale``, reduced
+        with area averaging, enlarged bilinearly); with ``refine_near`` ((K, 4)
         boxes) only the small faces overlapping one of them by more than 0.3 IoU are
         refined; the others keep the search's landmarks (``Faces.coarse``). Faces a region's
         edge cuts (:func:`cut`) are left out: their landmarks are a part face's. A small face
@@ -336,8 +339,9 @@ class YuNetDetector:
         if region is not None:
             x0, y0, rw, rh = region
             small = frame[y0 : y0 + rh, x0 : x0 + rw]
-        if scale < 1.0:
-            small = cv2.resize(small, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        if scale != 1.0:
+            interp = cv2.INTER_AREA if scale < 1.0 else cv2.INTER_LINEAR
+            small = cv2.resize(small, None, fx=scale, fy=scale, interpolation=interp)
         h, w = small.shape[:2]
         if (w, h) != self._size:
             self.net.setInputSize((w, h))
@@ -347,7 +351,7 @@ class YuNetDetector:
             return Faces.empty()
         f = np.asarray(found, np.float64).reshape(-1, 15)
         f = f[np.argsort(-f[:, 14], kind="stable")]
-        if scale < 1.0:  # to full-resolution pixels (pixel centres at integers in both)
+        if scale != 1.0:  # to full-resolution pixels (pixel centres at integers in both)
             xy = [0, 1, *range(4, 14)]
             f[:, xy] = (f[:, xy] + 0.5) / scale - 0.5
             f[:, 2:4] /= scale
