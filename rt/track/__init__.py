@@ -9,6 +9,7 @@
 - ``refusals``: where a second look (or a search where the frame changed) found no face,
   looked at less and less often.
 - ``rectify``: a face seen square-on: a crop of a frame as a virtual camera pointed at it.
+- ``noise``: how noisy a face's picture is, and how much its refinement crop is smoothed.
 - ``boxes``: how much two face boxes overlap.
 - ``anatomy``: a viewer's eye from the landmarks: distance from the interpupillary distance,
   corrected for the head's turn; a viewer's face height and the range it gives a turned face.

@@ -23,6 +23,7 @@ import numpy as np
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.boxes import overlaps
 from viewcomp.rt.track.faces import DetectorError
+from viewcomp.rt.track.noise import relative_noise, smoothing
 from viewcomp.rt.track.rectify import View
 from viewcomp.rt.track.refusals import Refusals
 
@@ -183,10 +184,21 @@ class YuNetDetector:
         self, frame: np.ndarray, box: np.ndarray, box_px: float | None = None
     ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
         """The refinement crop of ``box`` (x, y, w, h frame pixels): ``CONTEXT`` box sizes
-        each side of its centre, the box ``box_px`` wide (None: ``refine_box_px``); and the
-        map from the crop's pixels (M, 2) to the frame's."""
+        each side of its centre, the box ``box_px`` wide (None: ``refine_box_px``), smoothed
+        as much as the face's noise calls for (:mod:`viewcomp.rt.track.noise`); and the map
+        from the crop's pixels (M, 2) to the frame's."""
         if box_px is None:
             box_px = self.config.refine_box_px
+        crop, to_frame = self._view(frame, box, box_px)
+        sigma = smoothing(relative_noise(frame, box))
+        if sigma > 0:  # in the crop's pixels: box_px of them per box width
+            crop = cv2.GaussianBlur(crop, (0, 0), sigma * box_px / max(float(box[2]), 1.0))
+        return crop, to_frame
+
+    def _view(
+        self, frame: np.ndarray, box: np.ndarray, box_px: float
+    ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """The crop of :meth:`_crop`, not smoothed."""
         if self.device is not None:
             if frame.shape[1::-1] != tuple(self.device.resolution):
                 raise ValueError(
