@@ -100,7 +100,7 @@ class LiveFaces:
         self.refusals = Refusals()
         self.frame_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
         # networks of their own: the tiles keep one input size, the half frame another,
-        # the enlarged change regions a third (a tile's, to within a pixel)
+        # the enlarged change regions a third
         self.tile_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
         self.change_detector = YuNetDetector(self.config, device=device, refusals=self.refusals)
         self.path = self.frame_detector.path

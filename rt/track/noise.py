@@ -2,10 +2,10 @@
 
 A webcam in a dim room raises its gain: the picture keeps its brightness and gains noise.
 YuNet reads the eyes of a noisy face too far apart, so the face is ranged short, the more
-the noisier (simulated faces 2.5-3.4 m from a 720p webcam, noise as a share of full scale on
-faces of full contrast: 2 %, median distance 0.97-1.00 of the truth; 4 %, 0.94-0.99; 6 %,
-0.93-0.97; a face lit at 0.3 with 2 % noise, 0.95-0.98). What counts is the noise against
-the face's own contrast: :func:`relative_noise`.
+the noisier (simulated faces 0.8-3.5 m from a 720p webcam, the far ones most; noise as a
+share of full scale on faces of full contrast: 2 %, median distance 0.97-1.00 of the truth;
+4 %, 0.94-0.99; 6 %, 0.93-0.97; a face lit at 0.3 with 2 % noise, 0.95-0.98). What counts
+is the noise against the face's own contrast: :func:`relative_noise`.
 
 Smoothing the refinement crop takes the bias back, but a smoothed face also moves YuNet's
 nose less when the head turns (the yaw is read short), so a crop is smoothed only as much
@@ -30,7 +30,8 @@ import numpy as np
 # unbiased: simulated faces of full contrast with 2 % of full scale of noise in each channel
 # (poses drawn for this, not the tracker's test) read 0.965-1.002 of the distance, 1 % alike.
 QUIET = 0.021
-MAX_SIGMA = 1.5  # frame pixels: the most a crop is smoothed (a face 10 pixels across)
+# Frame pixels: the most a crop is smoothed (a far face's eyes are 10-15 pixels apart).
+MAX_SIGMA = 1.5
 SAMPLES = 20000  # second differences enough for the median (its error about 1 %)
 # Immerkaer's mask: second differences in both directions, zero on any plane; white noise
 # of standard deviation s gives a response of standard deviation 6 s.
