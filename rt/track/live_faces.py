@@ -37,8 +37,8 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
   tenth of the refinement crop's pixels), and kept with that reading where it is a face
   there. That reading is marked ``coarse`` (the tracker takes no face height
   from it, knows the face's next reading by its box and starts afresh from it): newcomers at
-  0.8-3.5 m, 60-120 degrees, are within 10 cm and 10 % in about 70 % of first readings
-  (distance error median 6 %, at most 21 %) against 97 % refined (docs/BENCHMARKS.md).
+  0.8-3.5 m, 60-120 degrees, are within 10 cm and 10 % in about 80 % of first readings
+  (distance error median 6 %, at most 20 %) against 97 % refined (docs/BENCHMARKS.md).
 
 All of it runs in the caller's thread and the work per frame is bounded. (A worker thread
 searching whole frames back to back took 200-400 ms a search with one of two cores busy, so
