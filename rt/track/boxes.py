@@ -1,4 +1,5 @@
-"""Face boxes (x, y, w, h pixels, top-left corner): how much two of them overlap."""
+"""Face boxes (x, y, w, h pixels, top-left corner): how much two of them overlap, and the
+square of a frame around one."""
 
 from __future__ import annotations
 
@@ -27,3 +28,16 @@ def overlaps(box: np.ndarray, boxes: np.ndarray) -> bool:
     """Whether ``box`` (4,) and any of ``boxes`` (N, 4), x y w h, are one face (IoU above
     :data:`SAME_FACE`); False for no boxes."""
     return len(boxes) > 0 and float(np.max(iou(box, boxes))) > SAME_FACE
+
+
+def around(box: np.ndarray, sides: float, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1) pixels: the square ``sides`` box sizes (the larger of width and
+    height) each side of ``box``'s centre, cut to a frame of ``shape`` ((h, w, ...))."""
+    x, y, w, h = (float(v) for v in box[:4])
+    side = sides * max(w, h)
+    cx, cy = x + w / 2.0, y + h / 2.0
+    fh, fw = shape[:2]
+    return (
+        int(max(0, cx - side)), int(max(0, cy - side)),
+        int(min(fw, cx + side)), int(min(fh, cy + side)),
+    )  # fmt: skip

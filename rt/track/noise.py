@@ -15,7 +15,9 @@ noise down to ``QUIET`` of the face's contrast, where YuNet's eyes are measured 
 
 The noise is estimated from the frame's own pixels around the face (Immerkaer's operator, the
 second differences that cancel smooth shading, and the median of their magnitudes: robust to
-the edges of a face and a room), once per refinement crop.
+the edges of a face and a room), once per refinement crop, and the smoothing is done there,
+at the frame's resolution where the noise is (:func:`smoothed_around`), before the crop is
+drawn enlarged: a few times fewer pixels than the crop's.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ import math
 
 import cv2
 import numpy as np
+
+from viewcomp.rt.track.boxes import around
 
 # The noise, as a share of the face's contrast (``relative_noise``'s units: the grey
 # level's noise, about 2/3 of each colour channel's), up to which YuNet's eyes are read
@@ -53,14 +57,10 @@ def relative_noise(frame: np.ndarray, box: np.ndarray) -> float:
     3) uint8 BGR, or (h, w) grey): its standard deviation in the square two box sizes each
     side of the box's centre, over the face's contrast (the 95th minus the 5th percentile of
     the grey levels inside the box); 0 where the box holds no contrast or too few pixels."""
-    x, y, w, h = (float(v) for v in box[:4])
+    rx0, ry0, rx1, ry1 = around(box, 2.0, frame.shape)
     fh, fw = frame.shape[:2]
-    side = 2.0 * max(w, h)
-    cx, cy = x + w / 2.0, y + h / 2.0
-    rx0, ry0 = int(max(0, cx - side)), int(max(0, cy - side))
-    rx1, ry1 = int(min(fw, cx + side)), int(min(fh, cy + side))
-    bx0, by0 = int(max(0, x)), int(max(0, y))
-    bx1, by1 = int(min(fw, x + w)), int(min(fh, y + h))
+    bx0, by0 = int(max(0.0, box[0])), int(max(0.0, box[1]))
+    bx1, by1 = int(min(fw, box[0] + box[2])), int(min(fh, box[1] + box[3]))
     if rx1 - rx0 < 3 or ry1 - ry0 < 3 or bx1 <= bx0 or by1 <= by0:
         return 0.0
     region = frame[ry0:ry1, rx0:rx1]
@@ -70,6 +70,23 @@ def relative_noise(frame: np.ndarray, box: np.ndarray) -> float:
     if hi - lo <= 0:
         return 0.0
     return noise_sigma(grey) / float(hi - lo)
+
+
+def smoothed_around(frame: np.ndarray, box: np.ndarray, sigma: float, sides: float) -> np.ndarray:
+    """A copy of ``frame`` ((h, w, ...) uint8) with the square ``sides`` box sizes each side
+    of ``box``'s centre (x, y, w, h pixels) smoothed by a Gaussian of ``sigma`` pixels (its
+    edge reads the pixels beyond, as the whole frame smoothed would): what a refinement crop
+    of that square is drawn from. The rest of the frame is left as it is."""
+    out = frame.copy()
+    x0, y0, x1, y1 = around(box, sides, frame.shape)
+    pad = math.ceil(3.0 * sigma) + 1
+    fh, fw = frame.shape[:2]
+    px0, py0, px1, py1 = max(0, x0 - pad), max(0, y0 - pad), min(fw, x1 + pad), min(fh, y1 + pad)
+    if px1 <= px0 or py1 <= py0:
+        return out
+    blurred = cv2.GaussianBlur(frame[py0:py1, px0:px1], (0, 0), sigma)
+    out[y0:y1, x0:x1] = blurred[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
+    return out
 
 
 def smoothing(rho: float, quiet: float = QUIET) -> float:

@@ -21,9 +21,9 @@ import cv2
 import numpy as np
 
 from viewcomp.calib.world.rig import Device
-from viewcomp.rt.track.boxes import overlaps
+from viewcomp.rt.track.boxes import around, overlaps
 from viewcomp.rt.track.faces import DetectorError
-from viewcomp.rt.track.noise import relative_noise, smoothing
+from viewcomp.rt.track.noise import relative_noise, smoothed_around, smoothing
 from viewcomp.rt.track.rectify import View
 from viewcomp.rt.track.refusals import Refusals
 
@@ -189,16 +189,9 @@ class YuNetDetector:
         from the crop's pixels (M, 2) to the frame's."""
         if box_px is None:
             box_px = self.config.refine_box_px
-        crop, to_frame = self._view(frame, box, box_px)
         sigma = smoothing(relative_noise(frame, box))
-        if sigma > 0:  # in the crop's pixels: box_px of them per box width
-            crop = cv2.GaussianBlur(crop, (0, 0), sigma * box_px / max(float(box[2]), 1.0))
-        return crop, to_frame
-
-    def _view(
-        self, frame: np.ndarray, box: np.ndarray, box_px: float
-    ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
-        """The crop of :meth:`_crop`, not smoothed."""
+        if sigma > 0:  # the crop reaches CONTEXT box sizes out; a view off-axis a little more
+            frame = smoothed_around(frame, box, sigma, CONTEXT + 0.5)
         if self.device is not None:
             if frame.shape[1::-1] != tuple(self.device.resolution):
                 raise ValueError(
@@ -207,11 +200,7 @@ class YuNetDetector:
                 )
             view = View.of_box(self.device, box, box_px, CONTEXT)
             return view.image(frame), view.to_frame
-        h, w = frame.shape[:2]
-        side = CONTEXT * max(box[2], box[3])
-        cx, cy = box[0] + box[2] / 2, box[1] + box[3] / 2
-        x0, y0 = int(max(0, cx - side)), int(max(0, cy - side))
-        x1, y1 = int(min(w, cx + side)), int(min(h, cy + side))
+        x0, y0, x1, y1 = around(box, CONTEXT, frame.shape)
         k = box_px / max(box[2], 1.0)
         crop = cv2.resize(frame[y0:y1, x0:x1], None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
         # pixel centres at integers in both (as cv2.resize maps them)
