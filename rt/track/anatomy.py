@@ -27,17 +27,22 @@ A head turned far is ranged better by a length that a turn does not shorten: the
 to the mouth's, across the eye line (``height``), which a nod shortens instead. People differ in
 it more than in IPD, so it is measured per viewer (:mod:`viewcomp.rt.track.tracker`): on the
 frames read frontal (yaw under ``FRONTAL``), its length in metres is ``height`` x the IPD's
-range (:func:`face_height`). A turn the nose reads short leaves the IPD's range long, never
-short, so where the face height ranges a face nearer than the IPD does by more than its own
-noise, and the nose reads a turn too, the face height is believed (:func:`ranged_eyes`); a face
-it ranges nearer is not taken into the viewer's height. Both readings assume the viewer
-watches the picture: the head faces ``look`` (the screen's centre, the world origin), so the
-camera above or below it sees the face nodding by a known angle (:func:`nod`).
+range (:func:`face_height`). Both readings assume the viewer watches the picture: the head
+faces ``look`` (the screen's centre, the world origin), so the camera above or below it sees
+the face nodding by a known angle (:func:`nod`).
 
-Before a viewer's own height is measured (a single frame, a face first seen turned), the
-adults' typical height is used the same way, with gates as much wider as it is less certain
-(:func:`prior_ranged_eyes`): ``FACE_HEIGHT`` IPD, from anthropometric norms, not from the
-tracker's test faces.
+The two ranges are combined by what each can be wrong by (:func:`ranged_eyes`). A detector's
+nose tip moves less than the real one when the head turns (YuNet's, on the simulated heads
+0.5-0.7 as far at 45 degrees; on a real photograph 0.8), so the turn is read short and the
+IPD's range long; a nose deeper than ``nose_depth`` reads it long. So the true turn lies
+between the read one with its nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD``
+times (:func:`turn_bounds`): a frontal reading leaves the range almost exact, a turned one a
+wide interval, longer on the near side. The face height's range is a Gaussian (its relative
+spread: ``HEIGHT_SPREAD`` for a viewer's own height, ``PRIOR_SPREAD`` for the typical one);
+the range taken is its mean within that interval (a truncated Gaussian). Before a viewer's own
+height is measured (a single frame, a face first seen turned), the adults' typical height is
+used the same way (:func:`prior_ranged_eyes`): ``FACE_HEIGHT`` IPD, from anthropometric
+norms, not from the tracker's test faces.
 
 Error model (docs/INTERFACES.md): the range is proportional to the viewer's true IPD, so a
 person whose IPD differs from ``ipd`` by 6 % is ranged 6 % off (x, y scale with it along the
@@ -52,6 +57,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import ndtr
 
 from viewcomp.calib.world.rig import Device
 
@@ -59,25 +65,27 @@ IPD = 0.063  # metres: mean adult interpupillary distance
 # The nose tip's depth in front of the pupils, as a fraction of the IPD (about 25 mm).
 NOSE_DEPTH = 0.4
 MAX_YAW = np.radians(60.0)  # a larger estimate is clipped (a nearly profile face)
-# A face whose read yaw is under FRONTAL measures its viewer's face height; a face ranged by
-# that height NEARER_FROM nearer than by its IPD begins to be ranged by it, NEARER_TO nearer
-# wholly (the height's per-frame scatter is about 5 %, one standard deviation), if its nose
-# reads a turn: none under TURN_FROM, wholly past TURN_TO (a frontal face whose mouth is
-# covered has mouth landmarks that are guesses).
+# A face whose read yaw is under FRONTAL measures its viewer's face height, unless the height
+# known so far ranges it NEARER_FROM nearer than its IPD (turned more than its nose says) or
+# NEARER_TO farther (an outlier): the height's per-frame scatter is about 5 %, one SD.
 FRONTAL = np.radians(15.0)
 NEARER_FROM = 0.04
 NEARER_TO = 0.12
-TURN_FROM = np.radians(5.0)
-TURN_TO = np.radians(15.0)
-# The eyes'-midpoint-to-mouth-corners' height of an adult, in IPDs, where the viewer's own
-# is not measured yet: nasion to stomion is 72-77 mm in adult norms (women - men; nasal
-# height 48-51 mm + upper lip 24-26 mm), the pupils lie about 10 mm below the nasion and the
-# mouth corners about 2 mm above the stomion: 60-65 mm, against IPDs of 60-64 mm.
+# The turn the landmarks allow: the nose's offset from the eyes' midpoint is from NOSE_LAG to
+# NOSE_LEAD times the true one's. YuNet's moves 0.5-0.7 as far as the nose tip on the simulated
+# heads turned 45 degrees (0.8 on a real photograph: docs/INTERFACES.md); people's noses stand
+# up to about 20 % deeper than NOSE_DEPTH.
+NOSE_LAG = 0.5
+NOSE_LEAD = 1.2
+# The eyes'-midpoint-to-mouth-corners' height of an adult, in IPDs, where the viewer's own is
+# not measured yet: nasion to stomion is 72-77 mm in adult norms (women - men; nasal height
+# 48-51 mm + upper lip 24-26 mm), the pupils lie about 10 mm below the nasion and the mouth
+# corners about 2 mm above the stomion: 60-65 mm, against IPDs of 60-64 mm.
 FACE_HEIGHT = 1.0
-# People differ in that ratio by about 7 % (one SD) besides the 5 % per-frame scatter: about
-# 9 % in all, so the prior's gates are those of a measured height (0.8 and 2.4 SD) widened.
-PRIOR_NEARER_FROM = 0.07
-PRIOR_NEARER_TO = 0.21
+# The face height's range scatters by about HEIGHT_SPREAD (one SD, relative) frame to frame;
+# the typical height's by PRIOR_SPREAD: people differ in it by about 7 % besides.
+HEIGHT_SPREAD = 0.05
+PRIOR_SPREAD = 0.09
 LOOK = (0.0, 0.0, 0.0)  # metres: where viewers look, the screen's centre
 
 
@@ -213,21 +221,44 @@ def smoothstep(x: np.ndarray | float, lo: float = 0.0, hi: float = 1.0) -> np.nd
     return t * t * (3.0 - 2.0 * t)
 
 
+def turn_bounds(
+    yaw: np.ndarray, lag: float = NOSE_LAG, lead: float = NOSE_LEAD
+) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi), each like ``yaw``: the true range over the IPD's for a face whose nose read
+    a turn of ``yaw`` radians, if the nose's offset is ``lag`` (< 1: a turn read short, the
+    true range nearer) to ``lead`` times the true one: cos(atan(tan|yaw| / k)) / cos(yaw).
+    Both 1 at yaw 0; at a read 30 degrees, 0.76 and 1.04."""
+    t = np.tan(np.abs(np.asarray(yaw, np.float64)))
+    c = np.sqrt(1.0 + t * t)  # 1 / cos(yaw)
+    return c / np.sqrt(1.0 + (t / lag) ** 2), c / np.sqrt(1.0 + (t / lead) ** 2)
+
+
+def truncated_mean(mean: np.ndarray, sd: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The mean of a Gaussian (``mean``, ``sd`` > 0) truncated to [``lo``, ``hi``]
+    (elementwise); the nearer bound where the Gaussian has no weight there to float
+    precision."""
+    a, b = (lo - mean) / sd, (hi - mean) / sd
+    weight = ndtr(b) - ndtr(a)
+    pdf = (np.exp(-0.5 * a * a) - np.exp(-0.5 * b * b)) / np.sqrt(2.0 * np.pi)
+    inside = mean + sd * pdf / np.maximum(weight, 1e-300)
+    return np.clip(np.where(weight > 1e-12, inside, np.where(mean < lo, lo, hi)), lo, hi)
+
+
 def ranged_eyes(
-    pose: HeadPose, height_m: float, gate: tuple[float, float] = (NEARER_FROM, NEARER_TO)
+    pose: HeadPose, height_m: float, spread: float = HEIGHT_SPREAD
 ) -> tuple[np.ndarray, np.ndarray]:
     """The faces ranged with one viewer's face height, ``height_m`` metres (measured by
-    :func:`face_height`).
+    :func:`face_height`), and their IPD.
 
-    The range is blended from the IPD's toward the face height's by a smoothstep in how much
-    nearer the height ranges the face (a share of the IPD's range), from ``gate[0]`` to
-    ``gate[1]`` (for a measured height :data:`NEARER_FROM`, :data:`NEARER_TO`), times one in
-    the read yaw, from :data:`TURN_FROM` to :data:`TURN_TO`; the IPD's range where the mouth
-    was not seen.
+    The range is the mean of the face height's range, a Gaussian of relative sd ``spread``,
+    within what the IPD allows for the read turn (:func:`turn_bounds` times the IPD's range;
+    a truncated Gaussian): a frontal face keeps its IPD's range, a turned one is ranged by its
+    height where that lies within the interval, by the nearer end where it does not. The
+    IPD's range where the mouth was not seen.
 
     Returns:
-        The eyes (N, 3) metres, and (N,) how much nearer the height ranged each face (a
-        share; NaN where the mouth was not seen).
+        The eyes (N, 3) metres, and (N,) how much nearer the height ranged each face than the
+        IPD did (a share; NaN where the mouth was not seen).
     """
     h = pose.height
     ok = np.isfinite(h) & (h > 0)
@@ -236,20 +267,16 @@ def ranged_eyes(
     cos_a, sin_a = pose.nod[:, ok]
     by_height = height_m * (cos_a / h[ok] + sin_a)  # face_height solved for the range
     nearer[ok] = 1.0 - by_height / rng[ok]
-    w = smoothstep(nearer[ok], *gate)
-    w *= smoothstep(np.abs(pose.yaw[ok]), TURN_FROM, TURN_TO)
-    rng[ok] = (1.0 - w) * rng[ok] + w * by_height
+    lo, hi = turn_bounds(pose.yaw[ok])
+    rng[ok] = truncated_mean(by_height, spread * by_height, lo * rng[ok], hi * rng[ok])
     return pose.origin + pose.rays * rng[:, None], nearer
 
 
 def prior_ranged_eyes(pose: HeadPose) -> np.ndarray:
     """(N, 3) metres: the faces ranged as :func:`ranged_eyes` does with the typical adult face
-    height (:data:`FACE_HEIGHT` x ``pose.ipd``) and its wider gates
-    (:data:`PRIOR_NEARER_FROM`, :data:`PRIOR_NEARER_TO`): a viewer whose own height is not
-    measured yet. A face a turn's under-read ranges long comes nearer; a frontal one keeps
-    its IPD range, and one whose face is shorter than typical is not ranged short."""
-    gate = (PRIOR_NEARER_FROM, PRIOR_NEARER_TO)
-    return ranged_eyes(pose, FACE_HEIGHT * pose.ipd, gate)[0]
+    height (:data:`FACE_HEIGHT` x ``pose.ipd``) and its wider spread (:data:`PRIOR_SPREAD`):
+    a viewer whose own height is not measured yet."""
+    return ranged_eyes(pose, FACE_HEIGHT * pose.ipd, PRIOR_SPREAD)[0]
 
 
 def landmarks_of_head(

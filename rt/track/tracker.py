@@ -13,11 +13,11 @@ Given the faces' landmark readings (:class:`~viewcomp.rt.track.anatomy.HeadPose`
 also learns its viewer's face height (eyes to mouth, metres) from the faces read frontal (a
 running mean over about ``HEIGHT_FRAMES`` of them; a face the height already ranges nearer is
 not taken: it is turned more than its nose says), and a face matched to it is ranged with
-that height where the height says it is nearer
+that height within what its IPD allows for the turn its nose reads
 (:func:`~viewcomp.rt.track.anatomy.ranged_eyes`): the assignment compares each face, ranged
 with each track's own height, to that track's prediction. Until a track has measured its
-viewer's height (and for a face that starts a track), the typical adult's is used with wider
-gates (:func:`~viewcomp.rt.track.anatomy.prior_ranged_eyes`).
+viewer's height (and for a face that starts a track), the typical adult's is used with a
+wider spread (:func:`~viewcomp.rt.track.anatomy.prior_ranged_eyes`).
 
 A reading marked coarse (a live newcomer's first, from the search's own landmarks) starts a
 *provisional* track: it teaches no face height, the face whose box overlaps the track's box

@@ -77,7 +77,10 @@ def test_near_at_once_far_within_a_round_of_tiles_while_tracking_then_followed()
     assert counts == sorted(counts), counts  # and not lost after: followed in its crop
     last = got[-1]
     assert not last.coarse.any()
-    _alike(last.landmarks[int(np.argmin(last.boxes[:, 2])), :2], full.landmarks[1 - i, :2])
+    # the far face has 12-13 pixels between its eyes: two crops' readings of it differ by
+    # 3-5 % in separation (under 3 % on one host, 4.3 % on another: OpenCV's DNN numerics)
+    far = last.landmarks[int(np.argmin(last.boxes[:, 2])), :2]
+    _alike(far, full.landmarks[1 - i, :2], ratio_tol=0.06)
 
 
 def test_a_newcomer_costs_its_first_frame_no_crop_and_no_tile(monkeypatch):
