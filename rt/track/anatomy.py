@@ -20,7 +20,7 @@ Per face (five landmarks, pixels: left eye, right eye, nose tip, mouth corners):
    tan(yaw) = r / nose_depth and cos(yaw) = 1 / sqrt(1 + tan(yaw)^2). Pitch (nodding) moves
    the nose across the eye line and does not change s; a head that nods and turns shows its
    eye line rolled and its nose reads the turn short (exact landmarks of heads watching the
-   screen, turned 45 degrees: 18-39 degrees), which the face height below takes back.
+   screen, turned 45 degrees: 18-39 degrees), which the face height below takes back in part.
 4. The eye (the eyes' midpoint) is the camera's centre + R m, in the world frame.
 
 A head turned far is ranged better by a length that a turn does not shorten: the eyes' midpoint

@@ -156,7 +156,7 @@ def test_turn_bounds_and_the_truncated_mean_against_closed_forms():
     from scipy.stats import truncnorm
 
     lo, hi = turn_bounds(np.array([0.0, math.radians(30.0), -math.radians(30.0)]), 0.5, 1.2)
-    np.testing.assert_allclose(lo[0], 1.0) and np.testing.assert_allclose(hi[0], 1.0)
+    assert lo[0] == pytest.approx(1.0) and hi[0] == pytest.approx(1.0)
     t = math.tan(math.radians(30.0))
     want_lo = math.cos(math.atan(2.0 * t)) / math.cos(math.radians(30.0))
     want_hi = math.cos(math.atan(t / 1.2)) / math.cos(math.radians(30.0))
