@@ -289,7 +289,7 @@ def test_within_the_tolerances_in_95_percent_of_frames(measured, name):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_frontal_and_dim_faces_are_mostly_within_the_tolerances(measured, name):
-    """A guard below the issue's 95 % (which is the expected failure above): frontal and
+    """A guard below the issue's 95 % (which luispedro misses, above): frontal and
     dim faces, and frontal ones through the emulated webcam, are all found, and at least 80 %
     within 10 cm in x and y and 10 % in distance (measured: astronaut 100 %, 100 %, 100 %;
     hopper 100 %, 100 %, 92 %; luispedro 100 %, 92 %, 100 %; the misses are far and far aside,
