@@ -214,13 +214,6 @@ def face_height(pose: HeadPose) -> np.ndarray:
     return pose.height * pose.range / (cos_a + pose.height * sin_a)
 
 
-def smoothstep(x: np.ndarray | float, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:
-    """0 at ``x`` <= ``lo``, 1 at ``x`` >= ``hi``, 3 t^2 - 2 t^3 of t = (x - lo) / (hi - lo)
-    between (a ramp with flat ends)."""
-    t = np.clip((np.asarray(x, np.float64) - lo) / (hi - lo), 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
-
-
 def turn_bounds(
     yaw: np.ndarray, lag: float = NOSE_LAG, lead: float = NOSE_LEAD
 ) -> tuple[np.ndarray, np.ndarray]:

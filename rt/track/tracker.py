@@ -54,7 +54,6 @@ from viewcomp.rt.track.anatomy import (
     face_height,
     prior_ranged_eyes,
     ranged_eyes,
-    smoothstep,
 )
 from viewcomp.rt.track.boxes import SAME_FACE, iou
 from viewcomp.rt.track.filter import OneEuroFilter
@@ -62,6 +61,13 @@ from viewcomp.rt.track.filter import OneEuroFilter
 # A viewer's face height is the mean of its first HEIGHT_FRAMES frontal frames, then an
 # exponential mean that gives each new one that weight (1 / HEIGHT_FRAMES).
 HEIGHT_FRAMES = 30
+
+
+def smoothstep(x: np.ndarray | float, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:
+    """0 at ``x`` <= ``lo``, 1 at ``x`` >= ``hi``, 3 t^2 - 2 t^3 of t = (x - lo) / (hi - lo)
+    between (a ramp with flat ends)."""
+    t = np.clip((np.asarray(x, np.float64) - lo) / (hi - lo), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
 
 
 @dataclass
