@@ -190,9 +190,16 @@ def photo_points(
     for _ in range(30):  # the nose tip's lateral place (the cylinder is flat there: fast)
         f = float(_forward(np.array(ln), np.array(yn), (ln, yn), ipd, nose_depth))
         ln = (xn - f * sn) / c
-    lat = x / c
+    x, y = np.broadcast_arrays(x, y)
+    lat = (x / c).ravel()
+    xf, yf = x.ravel(), y.ravel()
+    todo = np.arange(lat.size)
     for _ in range(12):  # steep flanks converge slowest (a photograph hardly saw them)
-        lat = (x - _forward(lat, y, (ln, yn), ipd, nose_depth) * sn) / c
+        step = (xf[todo] - _forward(lat[todo], yf[todo], (ln, yn), ipd, nose_depth) * sn) / c
+        moved = np.abs(step - lat[todo]) > 1e-7 * ipd
+        lat[todo] = step
+        todo = todo[moved]
+    lat = lat.reshape(x.shape)
     h = 1e-4 * ipd
     slope = (_forward(lat + h, y, (ln, yn), ipd, nose_depth)
              - _forward(lat - h, y, (ln, yn), ipd, nose_depth)) / (2 * h)  # fmt: skip
