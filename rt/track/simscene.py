@@ -210,9 +210,10 @@ def photo_turn(eyes: np.ndarray, nose: np.ndarray, nose_depth: float = NOSE_DEPT
     """The photographed head's own turn, radians (positive: the nose toward the image's
     right), from its pupils ``eyes`` (2, 2) and nose tip ``nose`` (2,) pixels: the turn at
     which the head :func:`photo_points` makes of it has the nose tip on its midline (the
-    nose tip stands where the relief puts it, ridge and roundness together, about 0.5 IPD
-    in front of the eyes; the tracker's own ``NOSE_DEPTH`` alone would make the head
-    lopsided and its proportions wrong)."""
+    nose tip stands where the relief puts it, ridge and roundness together, 0.47 IPD in
+    front of the eyes; read with the tracker's own ``NOSE_DEPTH`` alone, the head would be
+    drawn lopsided and its proportions wrong). ValueError for a nose too far aside for a
+    head turned under 50 degrees."""
     probe = Person("", np.zeros((1, 1, 3), np.uint8), np.asarray(eyes, np.float64),
                    np.asarray(nose, np.float64), (0.0, 0.0, 1.0, 1.0))  # fmt: skip
 
