@@ -220,7 +220,8 @@ SHORT = {
     "turned 38.5 degrees, moves 1.37 times as far as the drawn tip (1.05 on the photograph "
     "itself), so the turn is over-read and the distance short",
     ("luispedro", "turned 45"): "0.931: as turned 25 (YuNet's nose 1.32 times as far as the "
-    "drawn tip), beyond the 1.2 the ranging allows (anatomy.NOSE_LEAD)",
+    "drawn tip, 1.55 times as far as the tracker's 0.4 IPD nose would move: past the 1.2 "
+    "the ranging allows, anatomy.NOSE_LEAD)",
 }
 
 
