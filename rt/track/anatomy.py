@@ -34,10 +34,10 @@ the face nodding by a known angle (:func:`nod`).
 The two ranges are combined by what each can be wrong by (:func:`ranged_eyes`). A detector's
 nose tip may move less than the real one when the head turns (YuNet's stands 0.72-1.05 as far
 out as a hand-marked tip on real photographs), so the turn is read short and the IPD's range
-long; a nose deeper than ``nose_depth`` reads it long. So the true turn lies
-between the read one with its nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD``
-times (:func:`turn_bounds`): a frontal reading leaves the range almost exact, a turned one a
-wide interval, longer on the near side. The face height's range is a Gaussian (its relative
+long; a nose deeper than ``nose_depth`` reads it long. So the true turn lies between the read
+one with its nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD`` times
+(:func:`turn_bounds`): a frontal reading leaves the range almost exact, a turned one a wide
+interval, longer on the near side. The face height's range is a Gaussian (its relative
 spread: ``HEIGHT_SPREAD`` for a viewer's own height, ``PRIOR_SPREAD`` for the typical one);
 the range taken is its mean within that interval (a truncated Gaussian). Before a viewer's own
 height is measured (a single frame, a face first seen turned), the adults' typical height is

@@ -166,6 +166,25 @@ def _aligned(
     return (du * d[0] + dv * d[1]) * s, (du * d[1] - dv * d[0]) * s
 
 
+def _nose_tip(
+    eyes: np.ndarray, nose: np.ndarray, yaw0: float, ipd: float, depth: float
+) -> tuple[float, float]:
+    """(lateral, up) metres from the eyes' midpoint of the nose tip ``nose`` (2,) pixels of a
+    photograph with pupils ``eyes`` (2, 2) pixels, taken of the head turned by ``yaw0``: where
+    the photograph's ray through it meets the relief (:func:`_forward`; a fixed point, fast
+    where the cylinder is flat)."""
+    c, sn = np.cos(yaw0), np.sin(yaw0)
+    s = ipd * c / float(np.linalg.norm(eyes[1] - eyes[0]))
+    xn, yn = (float(w) for w in _aligned(eyes, nose[0], nose[1], s))
+    ln = xn / c
+    for _ in range(30):
+        f = float(_forward(np.array(ln), np.array(yn), (ln, yn), ipd, depth))
+        ln, was = (xn - f * sn) / c, ln
+        if abs(ln - was) < 1e-12 * ipd:
+            break
+    return ln, yn
+
+
 def photo_points(
     person: Person,
     u: np.ndarray,
@@ -185,11 +204,7 @@ def photo_points(
     c, sn = np.cos(y0), np.sin(y0)
     s = ipd * c / float(np.linalg.norm(person.eyes[1] - person.eyes[0]))
     x, y = _aligned(person.eyes, u, v, s)  # x = lateral cos(y0) + forward sin(y0)
-    xn, yn = (float(w) for w in _aligned(person.eyes, person.nose[0], person.nose[1], s))
-    ln = xn / c
-    for _ in range(30):  # the nose tip's lateral place (the cylinder is flat there: fast)
-        f = float(_forward(np.array(ln), np.array(yn), (ln, yn), ipd, nose_depth))
-        ln = (xn - f * sn) / c
+    ln, yn = _nose_tip(person.eyes, person.nose, y0, ipd, nose_depth)
     x, y = np.broadcast_arrays(x, y)
     lat = (x / c).ravel()
     xf, yf = x.ravel(), y.ravel()
@@ -214,12 +229,10 @@ def photo_turn(eyes: np.ndarray, nose: np.ndarray, nose_depth: float = NOSE_DEPT
     front of the eyes; read with the tracker's own ``NOSE_DEPTH`` alone, the head would be
     drawn lopsided and its proportions wrong). ValueError for a nose too far aside for a
     head turned under 50 degrees."""
-    probe = Person("", np.zeros((1, 1, 3), np.uint8), np.asarray(eyes, np.float64),
-                   np.asarray(nose, np.float64), (0.0, 0.0, 1.0, 1.0))  # fmt: skip
+    e, n = np.asarray(eyes, np.float64), np.asarray(nose, np.float64)
 
     def off_midline(y0: float) -> float:
-        lat = photo_points(probe, probe.nose[:1], probe.nose[1:], y0, 1.0, nose_depth)[0]
-        return float(lat[0])
+        return _nose_tip(e, n, y0, 1.0, nose_depth)[0]
 
     lim = np.radians(50.0)
     if off_midline(-lim) * off_midline(lim) > 0:
