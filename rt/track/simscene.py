@@ -29,7 +29,8 @@ shading and outline are painted on the relief): drawn turned 25 or 45 degrees, Y
 moves a median 0.62-0.64 as far as the drawn tip on the astronaut, 0.84-0.92 on Hopper (both
 photographed frontal) and 1.32-1.37 times as far on luispedro (photographed turned 38.5
 degrees); on real photographs it stands 0.72-1.05 as far out as a hand-marked tip
-(docs/INTERFACES.md, "Measured").
+(docs/INTERFACES.md, "Measured"). A head scanned in 3-D has no such limit
+(:mod:`viewcomp.rt.track.simscan`, which draws through :func:`splat` too).
 
 The frame is delivered by an ideal camera (:func:`finish`: a little noise, 8 bits) or by the
 calibration's emulated webcam (:func:`through_webcam`: the same sensor and processing that
@@ -95,6 +96,18 @@ class Person:
         """The eye line's angle in the photograph, radians (image axes: x right, y down)."""
         d = self.eyes[1] - self.eyes[0]
         return float(np.arctan2(d[1], d[0]))
+
+    def posed(self, yaw: float) -> tuple[Person, float]:
+        """:func:`posed` of this person."""
+        return posed(self, yaw)
+
+    def render(
+        self, frame: np.ndarray, device: Device, eye: np.ndarray, turn: float = 0.0,
+        gain: float = 1.0, occluder: tuple[float, float, float, float] | None = None,
+        look: np.ndarray | None = None,
+    ) -> np.ndarray:  # fmt: skip
+        """:func:`render_person` of this person (63 mm between the eyes)."""
+        return render_person(frame, device, self, eye, turn, IPD, NOSE_DEPTH, gain, occluder, look)
 
     def mirrored(self) -> Person:
         """The photograph mirrored left to right: the same person turned the other way."""
@@ -356,10 +369,10 @@ def render_person(
     sight /= np.linalg.norm(sight)
     depth = (pts.reshape(-1, 3) - np.asarray(device.position)) @ (-sight)
     colour = np.concatenate([src.reshape(-1, 3) * gain, alpha.reshape(-1, 1)], axis=1)
-    return _splat(frame, uv, depth, colour, ~unseen)
+    return splat(frame, uv, depth, colour, ~unseen)
 
 
-def _splat(
+def splat(
     frame: np.ndarray, uv: np.ndarray, depth: np.ndarray, colour: np.ndarray, known: np.ndarray
 ) -> np.ndarray:
     """``frame`` (h, w, 3) with points at ``uv`` (M, 2) pixels drawn over it, far to near
