@@ -119,4 +119,8 @@ else
   fi
   echo "$WANT" >"$STAMP"
 fi
+if [ "$MODE" = dev ]; then
+  # the tracker's people test draws a head scanned in 3-D (menpo3d's data, from PyPI)
+  "$VENV/bin/python" scripts/fetch_scan.py || die "could not fetch the tests' scanned head (scripts/fetch_scan.py)"
+fi
 say "done"
