@@ -1,15 +1,18 @@
-"""The people test's photographs (tests/rt/track/test_tracker_people.py), hand-annotated:
-pupil centres and nose tip read off enlarged crops with a pixel grid, never by YuNet or the
-tracker."""
+"""The people test's heads (tests/rt/track/test_tracker_people.py): photographs, hand-annotated
+(pupil centres and nose tip read off enlarged crops with a pixel grid, never by YuNet or the
+tracker), and a head scanned in 3-D with its authors' 3-D landmarks."""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from tests.support.scripts import load_script
+from viewcomp.rt.track.simscan import Scan, read_obj
 from viewcomp.rt.track.simscene import Person
 
 
@@ -33,3 +36,28 @@ def people() -> list[Person]:
         Person.annotated("luispedro", cv2.imread(str(lp)),
                          ((68, 170), (146, 157)), (85, 212), (135, 180, 110, 150)),
     ]  # fmt: skip
+
+
+@functools.cache  # one load for every test: its texture levels are computed once
+def scanned() -> Scan:
+    """James Booth's head as menpo3d 0.8.6 ships it (``james.obj``: 6393 vertices in
+    millimetres, a stereo texture ``james.jpg``; BSD, its LICENSE.txt beside it), fetched by
+    ``scripts/fetch_scan.py``. Its 68 landmarks (``james.ljson``, iBUG's 68 points in 3-D,
+    placed by the scan's authors): the eye centres are the means of the eye contours' six
+    points, the mouth corners the mouth's first and seventh, the nose tip the nose's
+    fourth (iBUG's 30)."""
+    import json
+
+    fetch = load_script("scripts/fetch_scan.py")
+    bad = fetch.damaged()
+    if bad:  # not skipped: the bias test must not vanish quietly
+        pytest.fail(f"{', '.join(bad)} missing or damaged: python scripts/fetch_scan.py")
+    where = fetch.DEST
+    vertices, faces, uv = read_obj(where / "james.obj")
+    texture = cv2.imread(str(where / "james.jpg"))
+    doc = json.loads((where / "james.ljson").read_text(encoding="utf-8"))["groups"]["LJSON"]
+    points = np.asarray(doc["landmarks"]["points"], np.float64)
+    group = {g["label"]: points[g["mask"]] for g in doc["labels"]}
+    eyes = np.stack([group["leye"].mean(axis=0), group["reye"].mean(axis=0)])
+    mouth = group["mouth"][[0, 6]]
+    return Scan.annotated("james", vertices, faces, uv, texture, eyes, mouth, group["nose"][3])

@@ -1,7 +1,8 @@
-"""viewcomp track on real people's photographs placed by their *eyes*, not by a detector.
+"""viewcomp track on real people's heads placed by their *eyes*, not by a detector.
 
 Three photographs that installed packages ship, each annotated once by hand (pupil centres and
-nose tip read off enlarged crops with a pixel grid, never by YuNet or the tracker):
+nose tip read off enlarged crops with a pixel grid, never by YuNet or the tracker), and a head
+scanned in 3-D:
 
 - ``astronaut``: Eileen Collins, NASA (public domain), scikit-image's ``data.astronaut()``;
 - ``hopper``: Grace Hopper with glasses, US Navy (public domain), matplotlib's sample data
@@ -15,8 +16,12 @@ nose tip read off enlarged crops with a pixel grid, never by YuNet or the tracke
   1.16-1.52). A head drawn far from its photograph's turn keeps the nose's look as
   photographed (:mod:`viewcomp.rt.track.simscene`): YuNet's nose moves about 0.6 (the
   astronaut), 0.9 (Hopper) and 1.35 (luispedro) times as far as the drawn tip.
+- ``james``: James Booth, menpo3d's textured face scan (menpo3d 0.8.6's data, BSD; fetched
+  by ``scripts/fetch_scan.py``) with its authors' 68 landmarks in 3-D
+  (:mod:`viewcomp.rt.track.simscan`): measured surface, so a turned head shows its own nose
+  and cheek; the only head here whose turned views are not redrawn from one photograph.
 
-Each is drawn as a 2.5-D head (:mod:`viewcomp.rt.track.simscene`) with a 63 mm
+The photographs are drawn as 2.5-D heads (:mod:`viewcomp.rt.track.simscene`), each with a 63 mm
 interpupillary distance at a known 3-D eye midpoint in a simulated 1280x720 webcam (90 degrees
 wide, the screen's top edge), facing the camera or turned by a known yaw (25 or 45 degrees
 either way), or facing a point of the picture below the camera ("watching": what a viewer
@@ -34,10 +39,11 @@ import math
 import numpy as np
 import pytest
 
-from tests.support.people import people
+from tests.support.people import people, scanned
 from viewcomp.rt.track.anatomy import head_pose
 from viewcomp.rt.track.run import Pipeline, TrackOptions
-from viewcomp.rt.track.simscene import finish, posed, render_person, through_webcam
+from viewcomp.rt.track.simscan import Scan
+from viewcomp.rt.track.simscene import Person, finish, render_person, through_webcam
 from viewcomp.rt.track.simwalk import background, walk_camera
 from viewcomp.rt.track.source import ArraySource
 from viewcomp.rt.track.tracker import EyeTracker, TrackerConfig
@@ -56,6 +62,11 @@ CONDITIONS = {
     # a Bayer sensor's noise, denoising, sharpening, MJPEG at 80) instead of an ideal camera
     "webcam": {"webcam": True},
 }
+
+
+def heads() -> list[Person | Scan]:
+    """The three photographs, then the scanned head (its eye centres 63 mm apart too)."""
+    return [*people(), scanned()]
 
 
 def look_at(kw: dict, rng: np.random.Generator) -> np.ndarray | None:
@@ -90,7 +101,7 @@ def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.nd
     back = background(dev.resolution, seed)
     det = YuNetDetector(device=dev)  # as the pipeline makes it: views pointed at the faces
     out = {}
-    for k, person in enumerate(people()):
+    for k, person in enumerate(heads()):
         for j, (cond, kw) in enumerate(CONDITIONS.items()):
             truth = poses(n, seed + 100 * k + j)
             rng = np.random.default_rng((seed, k, j))
@@ -98,9 +109,9 @@ def measure(n: int = 12, seed: int = 0) -> dict[tuple[str, str], dict[str, np.nd
             for i, e in enumerate(truth):
                 # the head's yaw toward the camera, either way; a photograph turned by
                 # itself (luispedro) is turned back by its own yaw first, or mirrored
-                who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
-                f = render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
-                                  occluder=kw.get("occluder"), look=look_at(kw, rng))  # fmt: skip
+                who, turn = person.posed((1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
+                f = who.render(back, dev, e, turn, gain=kw.get("gain", 1.0),
+                               occluder=kw.get("occluder"), look=look_at(kw, rng))  # fmt: skip
                 if kw.get("webcam"):
                     frame = through_webcam(f, rng)
                 else:
@@ -125,16 +136,16 @@ def measure_tracked(cond: str, n: int = 12, seed: int = 0) -> dict[str, dict[str
     j = list(CONDITIONS).index(cond)
     kw = CONDITIONS[cond]
     out = {}
-    for k, person in enumerate(people()):
+    for k, person in enumerate(heads()):
         truth = poses(n, seed + 100 * k + j)
         rng = np.random.default_rng((seed, k, j, 1))
         got = np.full_like(truth, np.nan)
         for i, e in enumerate(truth):
-            who, turn = posed(person, (1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
+            who, turn = person.posed((1.0 if i % 2 else -1.0) * kw.get("turn", 0.0))
             look = look_at(kw, rng)
             frames = [
-                finish(render_person(back, dev, who, e, turn, gain=kw.get("gain", 1.0),
-                                     occluder=occ, look=look), rng, kw.get("noise", 0.01))
+                finish(who.render(back, dev, e, turn, gain=kw.get("gain", 1.0),
+                                  occluder=occ, look=look), rng, kw.get("noise", 0.01))
                 for occ in (None, kw.get("occluder"))
             ]  # fmt: skip
             pipeline = Pipeline(ArraySource(frames, 10.0), dev, TrackOptions())
@@ -163,7 +174,7 @@ def measure_turning(
     back = background(dev.resolution, seed)
     j = list(CONDITIONS).index("turned 45")
     out = {}
-    for k, person in enumerate(people()):
+    for k, person in enumerate(heads()):
         ends = poses(n, seed + 100 * k + j)
         starts = poses(4 * n, seed + 100 * k + j + 50)
         rng = np.random.default_rng((seed, k, j, 2))
@@ -177,8 +188,8 @@ def measure_turning(
             turns = [0.0] * 4 + [sign * math.radians(turn_deg)] * 3
             frames = []
             for e, yaw in zip(path, turns, strict=True):
-                who, turn = posed(person, yaw)
-                frames.append(finish(render_person(back, dev, who, e, turn, look=look), rng))
+                who, turn = person.posed(yaw)
+                frames.append(finish(who.render(back, dev, e, turn, look=look), rng))
             opts = TrackOptions(tracker=TrackerConfig(face_height=face_height))
             pipeline = Pipeline(ArraySource(frames, 10.0), dev, opts)
             for f, fr in enumerate(pipeline.source):
@@ -212,10 +223,22 @@ def measured():
     return measure()
 
 
-NAMES = ("astronaut", "hopper", "luispedro")
+PHOTOGRAPHED = ("astronaut", "hopper", "luispedro")
+NAMES = (*PHOTOGRAPHED, "james")
 # Where the tracker falls short of the issue's median criterion, measured (12 frames a cell,
 # seed 0): expected failures, strict (a pass means the reason is out of date):
+JAMES_TURNED = (
+    "YuNet reads his turned face's eyes-to-mouth height larger than his frontal one (by up "
+    "to 16 %%), and the typical face height, where its range lies inside what the IPD allows "
+    "for the read turn, ranges him short: %s"
+)
 SHORT = {
+    ("james", "frontal"): "0.940: YuNet puts his eyes about 6 % farther apart than the "
+    "scan's eye centres, which his pupils marked by hand on its texture match across within "
+    "a millimetre (0.943 median from the eyes alone), 92 % within",
+    ("james", "turned 25"): JAMES_TURNED % "0.880, 17 % within",
+    ("james", "turned 45"): JAMES_TURNED % "0.849, none within",
+    ("james", "watching"): "0.944: as frontal (0.940), 83 % within",
     ("luispedro", "turned 25"): "0.931: YuNet's nose on his head, drawn from his photograph "
     "turned 38.5 degrees, moves 1.37 times as far as the drawn tip (1.05 on the photograph "
     "itself), so the turn is over-read and the distance short",
@@ -249,6 +272,9 @@ SHARE_SHORT = {
     "faces turned 25 and 45 degrees 12 % short",
     "hopper": "92 % (77 of 84): 3 turned 45 degrees 12-18 % long (YuNet's nose hardly moves on "
     "her frontal photograph drawn turned), 3 covered far faces not found, 1 covered aside",
+    "james": "64 % (54 of 84): 22 of 24 turned 25 and 45 degrees 9-23 % short (the face "
+    "height, above), 4 covered and 2 watching faces short or aside, 1 frontal, 1 through the "
+    "webcam",
     "luispedro": "87 % (73 of 84): 5 turned 10-15 % short (YuNet's nose 1.3 times the drawn "
     "tip's turn), 3 covered far faces not found and 1 11 % long, 2 far through the webcam",
 }
@@ -306,7 +332,7 @@ def test_a_tracked_face_is_followed_behind_a_hand(measured, tracked_covered):
     for the face again in an enlarged crop where it was, which finds what the whole-frame
     search misses (measured, the same poses, astronaut / hopper / luispedro: single frames
     75 / 75 / 75 % found; tracked 100 %)."""
-    for name in NAMES:
+    for name in PHOTOGRAPHED:  # james's covered face is found in every single frame
         alone = scores(measured[name, "occluded"]["truth"], measured[name, "occluded"]["got"])
         s = scores(tracked_covered[name]["truth"], tracked_covered[name]["got"])
         assert alone["found"] < 1.0, alone  # the bias this is about: whole-frame misses
@@ -328,6 +354,14 @@ def test_a_tracked_face_is_followed_behind_a_hand(measured, tracked_covered):
                 "reads a turn of 3-13 degrees (median 9; the others' scatter about none)",
             ),
         ),
+        pytest.param(
+            "james",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="measured 67 % (8 of 12), median 0.945: 2 ranged 12 % short (0.95 and "
+                "3.3 m), 2 at 3-3.5 m 10-14 cm aside",
+            ),
+        ),
     ],
 )
 def test_a_tracked_face_behind_a_hand_is_mostly_within_the_tolerances(tracked_covered, name):
@@ -337,8 +371,14 @@ def test_a_tracked_face_behind_a_hand_is_mostly_within_the_tolerances(tracked_co
     assert s["within"] >= 0.8, (name, s)
 
 
+@pytest.fixture(scope="module")
+def turning_45():
+    """:func:`measure_turning` at 45 degrees, 6 walks a person: face height on, off."""
+    return measure_turning(45.0, n=6), measure_turning(45.0, n=6, face_height=False)
+
+
 @pytest.mark.slow
-def test_a_viewer_who_turns_while_watching_is_ranged_by_their_face_height():
+def test_a_viewer_who_turns_while_watching_is_ranged_by_their_face_height(turning_45):
     """Viewers who watch the picture, then turn their heads 45 degrees while walking
     (:func:`measure_turning`, 6 walks a person). On the astronaut and Hopper, photographed
     frontal, YuNet's nose lags the turn and the nodding head's nose reads a smaller turn
@@ -347,9 +387,8 @@ def test_a_viewer_who_turns_while_watching_is_ranged_by_their_face_height():
     screen ranges them (0.98 / 1.10, 72 / 50 %). On luispedro, photographed turned, YuNet's
     nose does not lag (the IPD alone: 0.97, 72 %); the face height does not make him worse
     (0.96, 89 %)."""
-    on = measure_turning(45.0, n=6)
-    off = measure_turning(45.0, n=6, face_height=False)
-    for name in NAMES:
+    on, off = turning_45
+    for name in PHOTOGRAPHED:
         a = scores(on[name]["truth"], on[name]["got"])
         b = scores(off[name]["truth"], off[name]["got"])
         if name == "luispedro":
@@ -358,6 +397,20 @@ def test_a_viewer_who_turns_while_watching_is_ranged_by_their_face_height():
         assert b["median_ratio"] > 1.15, (name, b)  # the bias this is about
         assert abs(a["median_ratio"] - 1.0) < 0.5 * abs(b["median_ratio"] - 1.0), (name, a, b)
         assert a["within"] >= b["within"] + 0.25, (name, a, b)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="measured (6 walks): median 0.908, 28 % within with the face height; 0.922, 50 % "
+    "from the eyes alone (12 walks: 0.903, 33 %; 0.907, 53 %; turned 25: 0.913, 47 %; 0.955, "
+    "83 %): his nose over-reads the turn and YuNet's height grows on his turned face",
+)
+def test_the_scanned_head_turning_while_watching_is_ranged_within_5_percent(turning_45):
+    """The issue's median criterion for the head scanned in 3-D, watching the picture and
+    turning 45 degrees: 0.95-1.05 with the face height it learned while facing the screen."""
+    s = scores(turning_45[0]["james"]["truth"], turning_45[0]["james"]["got"])
+    assert s["found"] == 1.0 and 0.95 <= s["median_ratio"] <= 1.05, s
 
 
 def side_by_side(k: int, frames: int = 12) -> np.ndarray:
