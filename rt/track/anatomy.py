@@ -32,13 +32,14 @@ faces ``look`` (the screen's centre, the world origin), so the camera above or b
 the face nodding by a known angle (:func:`nod`).
 
 The two ranges are combined by what each can be wrong by (:func:`ranged_eyes`). A detector's
-nose tip may move less than the real one when the head turns (YuNet's stands 0.72-1.05 as far
+nose point may move less than the real tip when the head turns (YuNet's stands 0.72-1.05 as far
 out as a hand-marked tip on real photographs), so the turn is read short and the IPD's range
-long; a nose deeper than ``nose_depth`` reads it long. So the true turn lies between the read
-one with its nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD`` times
-(:func:`turn_bounds`): a frontal reading leaves the range almost exact, a turned one a wide
-interval, longer on the near side. The face height's range is a Gaussian (its relative
-spread: ``HEIGHT_SPREAD`` for a viewer's own height, ``PRIOR_SPREAD`` for the typical one);
+long; a nose deeper than the model's reads it long. ``nose_depth`` is the middle of what the
+two allow together (:data:`NOSE_DEPTH`), and the true turn lies between the read one with its
+nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD`` times (:func:`turn_bounds`): a
+frontal reading leaves the range almost exact, a turned one an interval. The face height's
+range is a Gaussian (its relative spread: ``HEIGHT_SPREAD`` for a viewer's own height,
+``PRIOR_SPREAD`` for the typical one);
 the range taken is its mean within that interval (a truncated Gaussian). Before a viewer's own
 height is measured (a single frame, a face first seen turned), the adults' typical height is
 used the same way (:func:`prior_ranged_eyes`): ``FACE_HEIGHT`` IPD, from anthropometric
@@ -62,8 +63,12 @@ from scipy.special import ndtr
 from viewcomp.calib.world.rig import Device
 
 IPD = 0.063  # metres: mean adult interpupillary distance
-# The nose tip's depth in front of the pupils, as a fraction of the IPD (about 25 mm).
-NOSE_DEPTH = 0.4
+# How far a detector's nose point stands in front of the pupils, as a fraction of the IPD
+# (32 mm): the nose tip's depth, 0.57-0.59 IPD (MediaPipe's canonical face model, a population
+# model in centimetres: 0.574 for its nose tip, 0.592 for its most forward point, from the eyes'
+# lid centres; menpo3d's scanned head: 0.57), times how far out YuNet puts it against a
+# hand-marked tip on real photographs, 0.72-1.05: 0.41-0.62, whose middle this is.
+NOSE_DEPTH = 0.5
 MAX_YAW = np.radians(60.0)  # a larger estimate is clipped (a nearly profile face)
 # A face whose read yaw is under FRONTAL measures its viewer's face height, unless the height
 # known so far ranges it NEARER_FROM nearer than its IPD (turned more than its nose says) or
@@ -72,12 +77,11 @@ FRONTAL = np.radians(15.0)
 NEARER_FROM = 0.04
 NEARER_TO = 0.12
 # The turn the landmarks allow: the nose's offset from the eyes' midpoint is from NOSE_LAG to
-# NOSE_LEAD times the true one's. YuNet's stands 0.72-1.05 as far out as a hand-marked tip on
-# real photographs; the simulated heads drawn turned show 0.34-1.84 (docs/INTERFACES.md,
-# "Measured": the redrawing, not only YuNet); people's noses stand up to about 20 % deeper
-# than NOSE_DEPTH.
-NOSE_LAG = 0.5
-NOSE_LEAD = 1.2
+# NOSE_LEAD times what NOSE_DEPTH gives: the ends of NOSE_DEPTH's 0.41-0.62, rounded outward.
+# (Photographs redrawn at another turn show 0.34-1.84 times the drawn tip's offset,
+# docs/INTERFACES.md, "Measured": their painted noses, not YuNet's; not used here.)
+NOSE_LAG = 0.8
+NOSE_LEAD = 1.25
 # The eyes'-midpoint-to-mouth-corners' height of an adult, in IPDs, where the viewer's own is
 # not measured yet: nasion to stomion is 72-77 mm in adult norms (women - men; nasal height
 # 48-51 mm + upper lip 24-26 mm), the pupils lie about 10 mm below the nasion and the mouth
@@ -221,7 +225,7 @@ def turn_bounds(
     """(lo, hi), each like ``yaw``: the true range over the IPD's for a face whose nose read
     a turn of ``yaw`` radians, if the nose's offset is ``lag`` (< 1: a turn read short, the
     true range nearer) to ``lead`` times the true one: cos(atan(tan|yaw| / k)) / cos(yaw).
-    Both 1 at yaw 0; at a read 30 degrees, 0.76 and 1.04."""
+    Both 1 at yaw 0; at a read 30 degrees, 0.94 and 1.05."""
     t = np.tan(np.abs(np.asarray(yaw, np.float64)))
     c = np.sqrt(1.0 + t * t)  # 1 / cos(yaw)
     return c / np.sqrt(1.0 + (t / lag) ** 2), c / np.sqrt(1.0 + (t / lead) ** 2)

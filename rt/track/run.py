@@ -42,9 +42,10 @@ class TrackOptions:
 
     ``detector``: ``"yunet"`` (the default: faces and landmarks, the distance from the eyes'
     separation, :mod:`viewcomp.rt.track.anatomy`, with ``ipd`` the viewers' interpupillary
-    distance and ``nose_depth`` the nose tip's depth in IPDs) or ``"cascade"`` (the fallback:
-    the LBP cascade's box taken as ``face_width`` metres wide, biased by how the cascade
-    draws boxes; the options below up to ``background_search`` are the cascade's).
+    distance and ``nose_depth`` the nose point's depth in IPDs, ``anatomy.NOSE_DEPTH``) or
+    ``"cascade"`` (the fallback: the LBP cascade's box taken as ``face_width`` metres wide,
+    biased by how the cascade draws boxes; the options below up to ``background_search`` are
+    the cascade's).
     ``near``/``far``: the distances (along the camera's axis) at which faces are searched;
     ``fps``: the frame rate of an image sequence; ``realtime``: pace files at their rate;
     ``templates``: size tracked faces by their own near view (:mod:`viewcomp.rt.track.scale`)

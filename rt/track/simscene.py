@@ -11,10 +11,11 @@ A flat photograph turned in 3-D would be a poor head: its nose does not move aga
 (a real head's does: that is how a turn is seen), so the photograph gets a relief
 (:func:`photo_points`): in the head's own frame (the photograph's roll taken out, the pupils
 one IPD apart on its lateral axis), a vertical cylinder of 82 mm radius through the eyes (the
-far cheek recedes when the head turns) and a nose ridge rising ``nose_depth`` IPD (0.4, the
-tracker's default) above it at the nose tip; the tip stands 0.47 IPD in front of the pupils,
-deeper than the tracker's model, so that the test can see the model's error (from exact
-landmarks the tracker reads a head turned 45 degrees 9-10 % short). The photograph is taken
+far cheek recedes when the head turns) and a nose ridge rising ``RIDGE`` IPD (0.5) above it at
+the nose tip; the tip stands 0.56 IPD in front of the pupils, as a real one does (MediaPipe's
+canonical face model: 0.57-0.59; menpo3d's scanned head: 0.57), not as the tracker's model
+has it (``anatomy.NOSE_DEPTH``, which also allows for how far out YuNet puts a nose). The
+photograph is taken
 as an orthographic view of that head turned by its own yaw (``Person.yaw``: the turn at which
 the relief puts the hand-marked nose tip on the face's midline, :func:`photo_turn`; the
 tracker's own nose model is not used to make the test's heads), each of its pixels followed
@@ -26,10 +27,10 @@ rectangle (a hand, a cup: fractions of the face's size) may be drawn over the fa
 
 A head drawn far from its photograph's own turn keeps the nose's look as photographed (its
 shading and outline are painted on the relief): drawn turned 25 or 45 degrees, YuNet's nose
-moves a median 0.62-0.64 as far as the drawn tip on the astronaut, 0.84-0.92 on Hopper (both
-photographed frontal) and 1.32-1.37 times as far on luispedro (photographed turned 38.5
-degrees); on real photographs it stands 0.72-1.05 as far out as a hand-marked tip
-(docs/INTERFACES.md, "Measured"). A head scanned in 3-D has no such limit
+moves a median 0.55-0.61 as far as the drawn tip on the astronaut, 0.69-0.80 on Hopper (both
+photographed frontal) and 0.97-0.98 on luispedro (photographed turned 33.6 degrees); on real
+photographs it stands 0.72-1.05 as far out as a hand-marked tip (docs/INTERFACES.md,
+"Measured"). A head scanned in 3-D has no such limit
 (:mod:`viewcomp.rt.track.simscan`, which draws through :func:`splat` too).
 
 The frame is delivered by an ideal camera (:func:`finish`: a little noise, 8 bits) or by the
@@ -49,8 +50,11 @@ from viewcomp.calib.emu.camera import develop_image, optics
 from viewcomp.calib.emu.profiles import WEBCAM
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import Device
-from viewcomp.rt.track.anatomy import IPD, NOSE_DEPTH
+from viewcomp.rt.track.anatomy import IPD
 
+# The nose ridge's height at the tip (IPDs): with the roundness between the eyes, the tip 0.56
+# IPD in front of the pupils. The simulator's own, not the tracker's anatomy.NOSE_DEPTH.
+RIDGE = 0.5
 HEAD_RADIUS = 1.3  # the head's roundness: a cylinder of this radius, in IPDs (82 mm)
 # A photograph's pixel of a surface it saw at a slant covers more of it: drawn where one
 # spreads over at most this many times its size (a slant of 70 degrees)
@@ -82,7 +86,7 @@ class Person:
         eyes: tuple[tuple[float, float], tuple[float, float]],
         nose: tuple[float, float],
         cut: tuple[float, float, float, float],
-        nose_depth: float = NOSE_DEPTH,
+        nose_depth: float = RIDGE,
     ) -> Person:
         """A person whose own head turn follows from the hand-marked nose: the turn at which
         the head :func:`render_person` makes of the photograph has its nose tip on its
@@ -107,7 +111,7 @@ class Person:
         look: np.ndarray | None = None,
     ) -> np.ndarray:  # fmt: skip
         """:func:`render_person` of this person (63 mm between the eyes)."""
-        return render_person(frame, device, self, eye, turn, IPD, NOSE_DEPTH, gain, occluder, look)
+        return render_person(frame, device, self, eye, turn, IPD, RIDGE, gain, occluder, look)
 
     def mirrored(self) -> Person:
         """The photograph mirrored left to right: the same person turned the other way."""
@@ -149,7 +153,7 @@ def _forward(
     across the face (from the eyes' midpoint) and ``y`` metres up: a nose ridge from between
     the eyes (35 % of the tip's height) to the nose tip at ``tip`` (lateral, up), ``depth``
     IPD high there, on a vertical cylinder of ``HEAD_RADIUS`` IPD through the eyes (the far
-    cheek recedes and the outline moves when the head turns). The nose tip stands about 0.47
+    cheek recedes and the outline moves when the head turns). The nose tip stands about 0.56
     IPD in front of the eyes: the ridge's ``depth`` and the cylinder's 0.1."""
     ln, yn = tip
     t = np.clip(y / yn, 0.0, 1.0) if yn < 0 else np.zeros_like(y)
@@ -204,7 +208,7 @@ def photo_points(
     v: np.ndarray,
     yaw0: float | None = None,
     ipd: float = IPD,
-    nose_depth: float = NOSE_DEPTH,
+    nose_depth: float = RIDGE,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The head a photograph becomes, in the head's own frame: photograph pixels (u, v) as
     (lateral, up, forward) metres from the eyes' midpoint, the photograph taken of the head
@@ -234,13 +238,13 @@ def photo_points(
     return lat, y, _forward(lat, y, (ln, yn), ipd, nose_depth), c + slope * sn
 
 
-def photo_turn(eyes: np.ndarray, nose: np.ndarray, nose_depth: float = NOSE_DEPTH) -> float:
+def photo_turn(eyes: np.ndarray, nose: np.ndarray, nose_depth: float = RIDGE) -> float:
     """The photographed head's own turn, radians (positive: the nose toward the image's
     right), from its pupils ``eyes`` (2, 2) and nose tip ``nose`` (2,) pixels: the turn at
     which the head :func:`photo_points` makes of it has the nose tip on its midline (the
-    nose tip stands where the relief puts it, ridge and roundness together, 0.47 IPD in
-    front of the eyes; read with the tracker's own ``NOSE_DEPTH`` alone, the head would be
-    drawn lopsided and its proportions wrong). ValueError for a nose too far aside for a
+    nose tip stands where the relief puts it, ridge and roundness together, 0.56 IPD in
+    front of the eyes; read with the ridge's height alone, the head would be drawn lopsided
+    and its proportions wrong). ValueError for a nose too far aside for a
     head turned under 50 degrees."""
     e, n = np.asarray(eyes, np.float64), np.asarray(nose, np.float64)
 
@@ -298,7 +302,7 @@ def drawn_landmarks(
     turn: float = 0.0,
     look: np.ndarray | None = None,
     ipd: float = IPD,
-    nose_depth: float = NOSE_DEPTH,
+    nose_depth: float = RIDGE,
 ) -> np.ndarray:
     """(3, 3) metres, world frame: the pupils (the eye on the photograph's left first) and the
     nose tip of the head :func:`render_person` draws with the same arguments."""
@@ -314,7 +318,7 @@ def render_person(
     eye: np.ndarray,
     turn: float = 0.0,
     ipd: float = IPD,
-    nose_depth: float = NOSE_DEPTH,
+    nose_depth: float = RIDGE,
     gain: float = 1.0,
     occluder: tuple[float, float, float, float] | None = None,
     look: np.ndarray | None = None,
