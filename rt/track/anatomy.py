@@ -39,11 +39,10 @@ two allow together (:data:`NOSE_DEPTH`), and the true turn lies between the read
 nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD`` times (:func:`turn_bounds`): a
 frontal reading leaves the range almost exact, a turned one an interval. The face height's
 range is a Gaussian (its relative spread: ``HEIGHT_SPREAD`` for a viewer's own height,
-``PRIOR_SPREAD`` for the typical one);
-the range taken is its mean within that interval (a truncated Gaussian). Before a viewer's own
-height is measured (a single frame, a face first seen turned), the adults' typical height is
-used the same way (:func:`prior_ranged_eyes`): ``FACE_HEIGHT`` IPD, from anthropometric
-norms, not from the tracker's test faces.
+``PRIOR_SPREAD`` for the typical one); the range taken is its mean within that interval (a
+truncated Gaussian). Before a viewer's own height is measured (a single frame, a face first
+seen turned), the adults' typical height is used the same way (:func:`prior_ranged_eyes`):
+``FACE_HEIGHT`` IPD, from anthropometric norms, not from the tracker's test faces.
 
 Error model (docs/INTERFACES.md): the range is proportional to the viewer's true IPD, so a
 person whose IPD differs from ``ipd`` by 6 % is ranged 6 % off (x, y scale with it along the

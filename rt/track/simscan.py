@@ -30,7 +30,7 @@ from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD
 from viewcomp.rt.track.simscene import head_frame, splat
 
-MAX_VERTICES = 2_000_000  # a mesh file larger than this is refused before it is read on
+MAX_BYTES = 256 << 20  # a mesh file larger than this is refused before it is read
 # Texels land at most this far apart in the frame (pixels): the splat leaves no holes
 TEXEL_SPACING = 0.5
 PYRAMID = 5  # texture levels: the coarsest serves a head about 16 times smaller
@@ -228,9 +228,12 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     indices and (F, 3, 2) texture coordinates (u right, v up, 0..1). Triangles only.
 
     Raises:
-        ValueError: naming the file and line: not triangles, indices out of range, no
-            texture coordinates, or more than :data:`MAX_VERTICES` vertices.
+        ValueError: naming the file (and line): larger than :data:`MAX_BYTES`, not
+            triangles, indices out of range, no texture coordinates.
     """
+    size = Path(path).stat().st_size
+    if size > MAX_BYTES:
+        raise ValueError(f"{path}: {size} bytes, more than a head mesh's {MAX_BYTES}")
     verts: list[list[float]] = []
     coords: list[list[float]] = []
     faces: list[list[int]] = []
@@ -241,8 +244,6 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             try:
                 if word == "v":
                     verts.append([float(x) for x in rest.split()[:3]])
-                    if len(verts) > MAX_VERTICES:
-                        raise ValueError(f"more than {MAX_VERTICES} vertices")
                 elif word == "vt":
                     coords.append([float(x) for x in rest.split()[:2]])
                 elif word == "f":

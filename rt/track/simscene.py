@@ -13,17 +13,17 @@ A flat photograph turned in 3-D would be a poor head: its nose does not move aga
 one IPD apart on its lateral axis), a vertical cylinder of 82 mm radius through the eyes (the
 far cheek recedes when the head turns) and a nose ridge rising ``RIDGE`` IPD (0.5) above it at
 the nose tip; the tip stands 0.56 IPD in front of the pupils, as a real one does (MediaPipe's
-canonical face model: 0.57-0.59; menpo3d's scanned head: 0.57), not as the tracker's model
-has it (``anatomy.NOSE_DEPTH``, which also allows for how far out YuNet puts a nose). The
-photograph is taken
-as an orthographic view of that head turned by its own yaw (``Person.yaw``: the turn at which
-the relief puts the hand-marked nose tip on the face's midline, :func:`photo_turn`; the
-tracker's own nose model is not used to make the test's heads), each of its pixels followed
-along its ray to the surface. The head is forward-mapped (splatted, far to near) into the
-frame; what no photograph pixel landed on inside the head's outline, and the surfaces the
-photograph saw at a slant of more than 70 degrees (the far side of a nose it saw turned),
-are filled in from around. Light is scaled by ``gain`` (dim rooms), and an ``occluder``
-rectangle (a hand, a cup: fractions of the face's size) may be drawn over the face.
+canonical face model: 0.57-0.59; menpo3d's scanned head: 0.57), not as the tracker's model has
+it (``anatomy.NOSE_DEPTH``, which also allows for how far out YuNet puts a nose). The
+photograph is taken as an orthographic view of that head turned by its own yaw (``Person.yaw``:
+the turn at which the relief puts the hand-marked nose tip on the face's midline,
+:func:`photo_turn`; the tracker's own nose model is not used to make the test's heads), each of
+its pixels followed along its ray to the surface. The head is forward-mapped (splatted, far to
+near) into the frame; what no photograph pixel landed on inside the head's outline, and the
+surfaces the photograph saw at a slant of more than 70 degrees (the far side of a nose it saw
+turned), are filled in from around. Light is scaled by ``gain`` (dim rooms), and an
+``occluder`` rectangle (a hand, a cup: fractions of the face's size) may be drawn over the
+face.
 
 A head drawn far from its photograph's own turn keeps the nose's look as photographed (its
 shading and outline are painted on the relief): drawn turned 25 or 45 degrees, YuNet's nose

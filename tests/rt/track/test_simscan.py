@@ -150,3 +150,12 @@ def test_a_bad_mesh_file_is_refused_with_its_name(tmp_path, text, why):
     with pytest.raises(ValueError, match=r"bad\.obj") as err:
         read_obj(path)
     assert why in str(err.value)
+
+
+def test_a_mesh_file_too_large_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    import viewcomp.rt.track.simscan as simscan
+
+    path, _ = card_obj(tmp_path)
+    monkeypatch.setattr(simscan, "MAX_BYTES", path.stat().st_size - 1)
+    with pytest.raises(ValueError, match="bytes, more than"):
+        read_obj(path)
