@@ -225,8 +225,7 @@ def measured():
     return measure()
 
 
-PHOTOGRAPHED = ("astronaut", "hopper", "luispedro")
-NAMES = (*PHOTOGRAPHED, "james")
+NAMES = ("astronaut", "hopper", "luispedro", "james")
 # Where the tracker falls short of the median criterion, measured (12 frames a cell,
 # seed 0): expected failures, strict (a pass means the reason is out of date):
 PAINTED = (
