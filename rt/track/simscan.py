@@ -19,7 +19,6 @@ near (:func:`viewcomp.rt.track.simscene.splat`: the nearest surface wins, holes 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +27,7 @@ import numpy as np
 
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD
-from viewcomp.rt.track.simscene import head_frame, splat
+from viewcomp.rt.track.simscene import head_axes, splat
 
 MAX_BYTES = 256 << 20  # a mesh file larger than this is refused before it is read
 # Texels land at most this far apart in the frame (pixels): the splat leaves no holes
@@ -102,8 +101,8 @@ class Scan:
     ) -> np.ndarray:  # fmt: skip
         """(3, 3) metres, world frame: the eye on the image's left when the head faces the
         camera, the other eye, the nose tip, as :func:`render_scan` draws them."""
-        pts = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], self.nose])
-        return _placed(device, pts * ipd, np.asarray(eye, np.float64), turn, look)
+        pts = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], self.nose]) * ipd
+        return np.asarray(eye, np.float64) + pts @ head_axes(device, eye, turn, look).T
 
     def texels(self, level: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The texels of pyramid ``level`` that a triangle covers: their surface points
@@ -137,23 +136,6 @@ class Scan:
         return render_scan(frame, device, self, eye, turn, IPD, gain, occluder, look)
 
 
-def _placed(
-    device: Device, pts: np.ndarray, eye: np.ndarray, turn: float, look: np.ndarray | None
-) -> np.ndarray:
-    """(M, 3) metres, world frame: head-frame points ``pts`` (M, 3) metres (lat, up, fwd) of
-    a head at ``eye`` facing ``look`` and turned ``turn`` radians (positive: the nose toward
-    the image's right) about its vertical."""
-    return eye + pts @ _turned(device, eye, turn, look).T
-
-
-def _turned(device: Device, eye: np.ndarray, turn: float, look: np.ndarray | None) -> np.ndarray:
-    """(3, 3): head-frame directions (lat, up, fwd) to world ones, for the head of
-    :func:`_placed`."""
-    c, s = math.cos(turn), math.sin(turn)
-    side, up, back = head_frame(device, eye, look)
-    return np.stack([c * side - s * back, up, s * side + c * back], axis=1)
-
-
 def render_scan(
     frame: np.ndarray,
     device: Device,
@@ -184,7 +166,7 @@ def render_scan(
         x0, y0, x1, y1 = occluder
         inside = (pts[:, 0] >= x0) & (pts[:, 0] <= x1) & (-pts[:, 1] >= y0) & (-pts[:, 1] <= y1)
         colour[inside] = 0.18
-    rot = _turned(device, e, turn, look)
+    rot = head_axes(device, e, turn, look)
     world = e + (pts * ipd) @ rot.T
     facing = np.sum((normals @ rot.T) * (np.asarray(device.position) - world), axis=1) > 0
     sight = np.asarray(device.position, np.float64) - e

@@ -271,6 +271,20 @@ def head_frame(device: Device, eye: np.ndarray, look: np.ndarray | None = None) 
     return np.stack([side, np.cross(back, side), back])
 
 
+def head_axes(
+    device: Device, eye: np.ndarray, turn: float, look: np.ndarray | None, roll: float = 0.0
+) -> np.ndarray:
+    """(3, 3): directions in a head's own frame (lat, up, fwd: its columns) to the world's,
+    for a head at ``eye`` facing ``look`` (:func:`head_frame`), turned ``turn`` radians about
+    its own vertical (positive: the nose toward the image's right), then rolled ``roll``
+    radians in the face's plane."""
+    c, s = np.cos(turn), np.sin(turn)
+    cr, sr = np.cos(roll), np.sin(roll)
+    yaw = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    tilt = np.array([[cr, sr, 0.0], [-sr, cr, 0.0], [0.0, 0.0, 1.0]])
+    return head_frame(device, np.asarray(eye, np.float64), look).T @ tilt @ yaw
+
+
 def placed(
     device: Device,
     person: Person,
@@ -285,14 +299,8 @@ def placed(
     ``lat``, ``up``, ``forward``, each (...)) for the head of :func:`render_person` (its eyes'
     midpoint at ``eye``, facing ``look``, turned ``person.yaw`` + ``turn`` about its own
     vertical, rolled as photographed)."""
-    c, sn = np.cos(person.yaw + turn), np.sin(person.yaw + turn)
-    xr, zr = lat * c + forward * sn, -lat * sn + forward * c
-    cr, sr = np.cos(person.roll), np.sin(person.roll)
-    xr, yr = xr * cr + up * sr, -xr * sr + up * cr
-    side, upward, back = head_frame(device, np.asarray(eye, np.float64), look)
-    return np.asarray(eye, np.float64) + (
-        xr[..., None] * side + yr[..., None] * upward + zr[..., None] * back
-    )
+    axes = head_axes(device, eye, person.yaw + turn, look, person.roll)
+    return np.asarray(eye, np.float64) + np.stack([lat, up, forward], axis=-1) @ axes.T
 
 
 def drawn_landmarks(
