@@ -23,6 +23,8 @@
 - ``run``: the loop from frames to publishers, and its thread for ``play --track-camera``.
 - ``simscene``: photographs of people drawn as 2.5-D heads placed by their eyes, seen by an
   ideal camera or the emulated webcam (tests).
+- ``simrelief``: the surfaces a photograph is painted on: a model (cylinder and nose ridge)
+  or a scanned face's measured relief (tests).
 - ``simscan``: a head scanned in 3-D (a textured mesh) placed by its eyes the same way
   (tests).
 - ``simwalk``: what the tracking camera sees of a face walking at known 3-D positions.

@@ -8,30 +8,27 @@ point on the screen, as a viewer watching the picture does, nodding against the 
 it) and turned by a known yaw.
 
 A flat photograph turned in 3-D would be a poor head: its nose does not move against its eyes
-(a real head's does: that is how a turn is seen), so the photograph gets a relief
-(:func:`photo_points`): in the head's own frame (the photograph's roll taken out, the pupils
-one IPD apart on its lateral axis), a vertical cylinder of 82 mm radius through the eyes (the
-far cheek recedes when the head turns) and a nose ridge rising ``RIDGE`` IPD (0.5) above it at
-the nose tip; the tip stands 0.56 IPD in front of the pupils, as a real one does (MediaPipe's
-canonical face model: 0.57-0.59; menpo3d's scanned head: 0.57), not as the tracker's model has
-it (``anatomy.NOSE_DEPTH``, which also allows for how far out YuNet puts a nose). The
-photograph is taken as an orthographic view of that head turned by its own yaw (``Person.yaw``:
-the turn at which the relief puts the hand-marked nose tip on the face's midline,
-:func:`photo_turn`; the tracker's own nose model is not used to make the test's heads), each of
-its pixels followed along its ray to the surface. The head is forward-mapped (splatted, far to
-near) into the frame; what no photograph pixel landed on inside the head's outline, and the
-surfaces the photograph saw at a slant of more than 70 degrees (the far side of a nose it saw
-turned), are filled in from around. Light is scaled by ``gain`` (dim rooms), and an
-``occluder`` rectangle (a hand, a cup: fractions of the face's size) may be drawn over the
-face.
+(a real head's does: that is how a turn is seen), so the photograph is painted on a relief
+(:mod:`viewcomp.rt.track.simrelief`: ``Person.relief``, the model's cylinder and nose ridge, or
+a scanned face's measured surface), in the head's own frame (the photograph's roll taken out,
+the pupils one IPD apart on its lateral axis, at depth 0), the nose tip 0.55-0.57 IPD in front
+of the pupils as a real one is (MediaPipe's canonical face model: 0.57-0.59; menpo3d's scanned
+head: 0.57), not as the tracker's model has it (``anatomy.NOSE_DEPTH``, which also allows for
+how far out YuNet puts a nose). The photograph is taken as an orthographic view of that head
+turned by its own yaw (``Person.yaw``: the turn at which the relief puts the hand-marked nose
+tip on the face's midline, :func:`photo_turn`; the tracker's own nose model is not used to
+make the test's heads), each of its pixels followed along its ray to the surface it sees
+(:func:`seen_lat`: the nearest where a ray meets the relief more than once). The head is
+forward-mapped (splatted, far to near) into the frame; what no photograph pixel landed on
+inside the head's outline, and the surfaces the photograph saw at a slant of more than 70
+degrees (the far side of a nose it saw turned), are filled in from around. Light is scaled by
+``gain`` (dim rooms), and an ``occluder`` rectangle (a hand, a cup: fractions of the face's
+size) may be drawn over the face.
 
 A head drawn far from its photograph's own turn keeps the nose's look as photographed (its
-shading and outline are painted on the relief): drawn turned 25 or 45 degrees, YuNet's nose
-moves a median 0.55-0.61 as far as the drawn tip on the astronaut, 0.69-0.80 on Hopper (both
-photographed frontal) and 0.97-0.98 on luispedro (photographed turned 33.6 degrees); on real
-photographs it stands 0.72-1.05 as far out as a hand-marked tip (docs/INTERFACES.md,
-"Measured"). A head scanned in 3-D has no such limit
-(:mod:`viewcomp.rt.track.simscan`, which draws through :func:`splat` too).
+shading and outline are painted on the relief), and what the photograph did not see (a cheek
+and ear turned toward the camera) is filled in from around. A head scanned in 3-D has no such
+limit (:mod:`viewcomp.rt.track.simscan`, which draws through :func:`splat` too).
 
 The frame is delivered by an ideal camera (:func:`finish`: a little noise, 8 bits) or by the
 calibration's emulated webcam (:func:`through_webcam`: the same sensor and processing that
@@ -51,11 +48,10 @@ from viewcomp.calib.emu.profiles import WEBCAM
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD
+from viewcomp.rt.track.simrelief import HEAD_RADIUS, MODEL, MeasuredRelief, Ridge
 
-# The nose ridge's height at the tip (IPDs): with the roundness between the eyes, the tip 0.56
-# IPD in front of the pupils. The simulator's own, not the tracker's anatomy.NOSE_DEPTH.
-RIDGE = 0.5
-HEAD_RADIUS = 1.3  # the head's roundness: a cylinder of this radius, in IPDs (82 mm)
+Relief = Ridge | MeasuredRelief  # the surfaces a photograph can be painted on
+
 # A photograph's pixel of a surface it saw at a slant covers more of it: drawn where one
 # spreads over at most this many times its size (a slant of 70 degrees)
 SLANT_STRETCH = 2.9
@@ -69,7 +65,8 @@ class Person:
     centres, the eye on the image's left first; ``nose`` (2,) pixels, the nose tip; ``cut``:
     an ellipse (cx, cy, ax, ay) pixels around the head (the rest is transparent); ``yaw``:
     the photographed head's own turn, radians, positive with the nose toward the image's
-    right (:func:`photo_turn`).
+    right (:func:`photo_turn`); ``relief``: the surface the photograph is painted on
+    (:mod:`viewcomp.rt.track.simrelief`).
     """
 
     name: str
@@ -78,6 +75,7 @@ class Person:
     nose: np.ndarray
     cut: tuple[float, float, float, float]
     yaw: float = 0.0
+    relief: Relief = MODEL
 
     @staticmethod
     def annotated(
@@ -86,14 +84,14 @@ class Person:
         eyes: tuple[tuple[float, float], tuple[float, float]],
         nose: tuple[float, float],
         cut: tuple[float, float, float, float],
-        nose_depth: float = RIDGE,
+        relief: Relief = MODEL,
     ) -> Person:
         """A person whose own head turn follows from the hand-marked nose: the turn at which
-        the head :func:`render_person` makes of the photograph has its nose tip on its
-        midline (:func:`photo_turn`)."""
+        the head :func:`render_person` makes of the photograph on ``relief`` has its nose tip
+        on its midline (:func:`photo_turn`)."""
         e = np.asarray(eyes, np.float64)
         n = np.asarray(nose, np.float64)
-        return Person(name, image, e, n, cut, photo_turn(e, n, nose_depth))
+        return Person(name, image, e, n, cut, photo_turn(e, n, relief), relief)
 
     @property
     def roll(self) -> float:
@@ -111,7 +109,7 @@ class Person:
         look: np.ndarray | None = None,
     ) -> np.ndarray:  # fmt: skip
         """:func:`render_person` of this person (63 mm between the eyes)."""
-        return render_person(frame, device, self, eye, turn, IPD, RIDGE, gain, occluder, look)
+        return render_person(frame, device, self, eye, turn, IPD, gain, occluder, look)
 
     def mirrored(self) -> Person:
         """The photograph mirrored left to right: the same person turned the other way."""
@@ -127,6 +125,7 @@ class Person:
             shift + flip * self.nose,
             (w - 1.0 - cx, cy, ax, ay),
             -self.yaw,
+            self.relief.mirrored(),
         )
 
 
@@ -146,30 +145,6 @@ def posed(person: Person, yaw: float) -> tuple[Person, float]:
     return person, yaw - person.yaw
 
 
-def _forward(
-    lat: np.ndarray, y: np.ndarray, tip: tuple[float, float], ipd: float, depth: float
-) -> np.ndarray:
-    """How far (metres) the head's surface stands forward of its eyes at ``lat`` metres
-    across the face (from the eyes' midpoint) and ``y`` metres up: a nose ridge from between
-    the eyes (35 % of the tip's height) to the nose tip at ``tip`` (lateral, up), ``depth``
-    IPD high there, on a vertical cylinder of ``HEAD_RADIUS`` IPD through the eyes (the far
-    cheek recedes and the outline moves when the head turns). The nose tip stands about 0.56
-    IPD in front of the eyes: the ridge's ``depth`` and the cylinder's 0.1."""
-    ln, yn = tip
-    t = np.clip(y / yn, 0.0, 1.0) if yn < 0 else np.zeros_like(y)
-    along = np.where(
-        y > 0,
-        0.35 * np.exp(-0.5 * (y / (0.12 * ipd)) ** 2),
-        np.where(y >= yn, 0.35 + 0.65 * t, np.exp(-0.5 * ((y - yn) / (0.12 * ipd)) ** 2)),
-    )
-    ridge = depth * ipd * along * np.exp(-0.5 * ((lat - t * ln) / (0.28 * ipd)) ** 2)
-    r = HEAD_RADIUS * ipd
-    u = np.clip(np.abs(lat) / r, 0.0, 0.999)
-    round_ = r * (np.sqrt(1.0 - u**2) - np.sqrt(1.0 - (0.5 * ipd / r) ** 2))
-    at_eyes = depth * ipd * 0.35 * np.exp(-0.5 * (0.5 / 0.28) ** 2)  # the ridge's, there
-    return ridge + round_ - at_eyes
-
-
 def _aligned(
     eyes: np.ndarray, u: np.ndarray, v: np.ndarray, s: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -184,75 +159,118 @@ def _aligned(
 
 
 def _nose_tip(
-    eyes: np.ndarray, nose: np.ndarray, yaw0: float, ipd: float, depth: float
+    eyes: np.ndarray, nose: np.ndarray, yaw0: float, ipd: float, relief: Relief
 ) -> tuple[float, float]:
     """(lateral, up) metres from the eyes' midpoint of the nose tip ``nose`` (2,) pixels of a
     photograph with pupils ``eyes`` (2, 2) pixels, taken of the head turned by ``yaw0``: where
-    the photograph's ray through it meets the relief (:func:`_forward`; a fixed point, fast
-    where the cylinder is flat)."""
-    c, sn = np.cos(yaw0), np.sin(yaw0)
+    the photograph's ray through it meets the relief, which is itself placed by the tip (a
+    fixed point). NaN lateral where the ray passes beside the head."""
+    c = np.cos(yaw0)
     s = ipd * c / float(np.linalg.norm(eyes[1] - eyes[0]))
     xn, yn = (float(w) for w in _aligned(eyes, nose[0], nose[1], s))
     ln = xn / c
     for _ in range(30):
-        f = float(_forward(np.array(ln), np.array(yn), (ln, yn), ipd, depth))
-        ln, was = (xn - f * sn) / c, ln
-        if abs(ln - was) < 1e-12 * ipd:
+        seen = seen_lat(relief, np.array([xn]), np.array([yn]), (ln, yn), yaw0, ipd)
+        ln, was = float(seen[0]), ln
+        if not abs(ln - was) >= 1e-12 * ipd:  # converged, or beside the head (NaN)
             break
     return ln, yn
 
 
+# The photograph's view of a relief is tabulated on rows ROW_STEP IPD apart, each sampled at
+# LAT_SAMPLES points across the head, before each pixel's point is polished by Newton's method
+ROW_STEP = 0.01
+LAT_SAMPLES = 1024
+
+
+def seen_lat(
+    relief: Relief,
+    x: np.ndarray,
+    y: np.ndarray,
+    tip: tuple[float, float],
+    yaw0: float,
+    ipd: float,
+) -> np.ndarray:
+    """(N,) metres: the lateral coordinate of the surface point an orthographic photograph of
+    the head turned by ``yaw0`` sees at ``x`` (N,) metres along its eye line (x = lateral
+    cos(yaw0) + forward sin(yaw0)) and ``y`` (N,) metres up. A ray may meet the relief more
+    than once (a nose seen turned); the nearest meeting is the one seen: along each row
+    sampled across the head, a point is seen where no point nearer the photograph's side
+    reaches as far along the eye line (a horizon), and the seen points are interpolated;
+    then Newton's method makes each pixel's exact on its own row, kept where it converges
+    near the interpolated point. NaN where the ray passes beside the head, or where neither
+    is within 0.01 IPD of the ray (a pixel on a fold's edge: 9 in 10000 of luispedro's)."""
+    c, sn = np.cos(yaw0), np.sin(yaw0)
+    lim = 0.999 * HEAD_RADIUS * ipd
+    lats = np.linspace(-lim, lim, LAT_SAMPLES)
+    step = ROW_STEP * ipd
+    lo = float(np.min(y)) - step
+    rows = lo + step * np.arange(int(np.ceil((float(np.max(y)) + step - lo) / step)) + 1)
+    reach = lats * c + relief.forward(lats[None, :], rows[:, None], tip, ipd) * sn
+    if sn >= 0:  # the photograph sees the head from the image's left: a horizon from there
+        seen = reach >= np.maximum.accumulate(reach, axis=1)
+    else:
+        seen = reach <= np.minimum.accumulate(reach[:, ::-1], axis=1)[:, ::-1]
+    j = np.clip(np.rint((y - lo) / step).astype(np.int64), 0, len(rows) - 1)
+    lat = np.empty(len(x))
+    miss = np.zeros(len(x), bool)
+    for r in np.unique(j):
+        q = j == r
+        ends = reach[r][seen[r]]
+        lat[q] = np.interp(x[q], ends, lats[seen[r]])
+        miss[q] = (x[q] < ends[0]) | (x[q] > ends[-1])
+    fwd = relief.forward
+    g0 = lat * c + fwd(lat, y, tip, ipd) * sn - x
+    out, h = lat.copy(), 1e-4 * ipd
+    for _ in range(6):
+        g = out * c + fwd(out, y, tip, ipd) * sn - x
+        slope = (fwd(out + h, y, tip, ipd) - fwd(out - h, y, tip, ipd)) / (2 * h)
+        out = out - g / np.maximum(c + slope * sn, 0.05)
+    g = out * c + fwd(out, y, tip, ipd) * sn - x
+    good = (np.abs(g) < 1e-7 * ipd) & (np.abs(out - lat) < 2.0 * step)
+    miss |= ~good & (np.abs(g0) > 0.01 * ipd)  # between a fold's two sides: not placed
+    return np.where(miss, np.nan, np.where(good, out, lat))
+
+
 def photo_points(
-    person: Person,
-    u: np.ndarray,
-    v: np.ndarray,
-    yaw0: float | None = None,
-    ipd: float = IPD,
-    nose_depth: float = RIDGE,
+    person: Person, u: np.ndarray, v: np.ndarray, yaw0: float | None = None, ipd: float = IPD
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The head a photograph becomes, in the head's own frame: photograph pixels (u, v) as
     (lateral, up, forward) metres from the eyes' midpoint, the photograph taken of the head
     turned by ``yaw0`` radians (None: ``person.yaw``) and its roll taken out (:func:`_aligned`):
-    the pupils at (-``ipd`` / 2, 0, 0) and (``ipd`` / 2, 0, 0), the surface :func:`_forward`'s
-    (the photograph's ray through each pixel followed to it); and how the photograph saw the
-    surface there: its length per length across the head (1 face-on, cos(``yaw0``) where
-    the face is flat)."""
+    the pupils at (-``ipd`` / 2, 0, 0) and (``ipd`` / 2, 0, 0), the surface ``person.relief``'s
+    (the photograph's ray through each pixel followed to the surface it sees,
+    :func:`seen_lat`); and how the photograph saw the surface there: its length per length
+    across the head (1 face-on, cos(``yaw0``) where the face is flat). Lateral and forward
+    are NaN (and the length 0) where a pixel's ray passes beside the head."""
     y0 = person.yaw if yaw0 is None else yaw0
     c, sn = np.cos(y0), np.sin(y0)
     s = ipd * c / float(np.linalg.norm(person.eyes[1] - person.eyes[0]))
     x, y = _aligned(person.eyes, u, v, s)  # x = lateral cos(y0) + forward sin(y0)
-    ln, yn = _nose_tip(person.eyes, person.nose, y0, ipd, nose_depth)
+    tip = _nose_tip(person.eyes, person.nose, y0, ipd, person.relief)
     x, y = np.broadcast_arrays(x, y)
-    lat = (x / c).ravel()
-    xf, yf = x.ravel(), y.ravel()
-    todo = np.arange(lat.size)
-    for _ in range(12):  # steep flanks converge slowest (a photograph hardly saw them)
-        step = (xf[todo] - _forward(lat[todo], yf[todo], (ln, yn), ipd, nose_depth) * sn) / c
-        moved = np.abs(step - lat[todo]) > 1e-7 * ipd
-        lat[todo] = step
-        todo = todo[moved]
-    lat = lat.reshape(x.shape)
+    lat = seen_lat(person.relief, x.ravel(), y.ravel(), tip, y0, ipd).reshape(x.shape)
+    miss = np.isnan(lat)
+    on = np.where(miss, 0.0, lat)
     h = 1e-4 * ipd
-    slope = (_forward(lat + h, y, (ln, yn), ipd, nose_depth)
-             - _forward(lat - h, y, (ln, yn), ipd, nose_depth)) / (2 * h)  # fmt: skip
-    return lat, y, _forward(lat, y, (ln, yn), ipd, nose_depth), c + slope * sn
+    fwd = person.relief.forward
+    slope = (fwd(on + h, y, tip, ipd) - fwd(on - h, y, tip, ipd)) / (2 * h)
+    return lat, y, np.where(miss, np.nan, fwd(on, y, tip, ipd)), np.where(miss, 0.0, c + slope * sn)
 
 
-def photo_turn(eyes: np.ndarray, nose: np.ndarray, nose_depth: float = RIDGE) -> float:
+def photo_turn(eyes: np.ndarray, nose: np.ndarray, relief: Relief = MODEL) -> float:
     """The photographed head's own turn, radians (positive: the nose toward the image's
     right), from its pupils ``eyes`` (2, 2) and nose tip ``nose`` (2,) pixels: the turn at
-    which the head :func:`photo_points` makes of it has the nose tip on its midline (the
-    nose tip stands where the relief puts it, ridge and roundness together, 0.56 IPD in
-    front of the eyes; read with the ridge's height alone, the head would be drawn lopsided
-    and its proportions wrong). ValueError for a nose too far aside for a
-    head turned under 50 degrees."""
+    which the head :func:`photo_points` makes of it on ``relief`` has the nose tip on its
+    midline (the nose tip stands where the relief puts it, 0.56-0.57 IPD in front of the
+    eyes). ValueError for a nose too far aside for a head turned under 50 degrees."""
     e, n = np.asarray(eyes, np.float64), np.asarray(nose, np.float64)
 
     def off_midline(y0: float) -> float:
-        return _nose_tip(e, n, y0, 1.0, nose_depth)[0]
+        return _nose_tip(e, n, y0, 1.0, relief)[0]
 
     lim = np.radians(50.0)
-    if off_midline(-lim) * off_midline(lim) > 0:
+    if not off_midline(-lim) * off_midline(lim) <= 0:  # same sides, or beside the head
         raise ValueError("the nose tip is too far aside for a head turned under 50 degrees")
     return float(brentq(off_midline, -lim, lim, xtol=1e-10))
 
@@ -310,12 +328,11 @@ def drawn_landmarks(
     turn: float = 0.0,
     look: np.ndarray | None = None,
     ipd: float = IPD,
-    nose_depth: float = RIDGE,
 ) -> np.ndarray:
     """(3, 3) metres, world frame: the pupils (the eye on the photograph's left first) and the
     nose tip of the head :func:`render_person` draws with the same arguments."""
     marks = np.vstack([person.eyes, person.nose[None]])
-    lat, up, fwd, _ = photo_points(person, marks[:, 0], marks[:, 1], None, ipd, nose_depth)
+    lat, up, fwd, _ = photo_points(person, marks[:, 0], marks[:, 1], None, ipd)
     return placed(device, person, eye, turn, look, lat, up, fwd)
 
 
@@ -326,7 +343,6 @@ def render_person(
     eye: np.ndarray,
     turn: float = 0.0,
     ipd: float = IPD,
-    nose_depth: float = RIDGE,
     gain: float = 1.0,
     occluder: tuple[float, float, float, float] | None = None,
     look: np.ndarray | None = None,
@@ -370,8 +386,9 @@ def render_person(
         inside = (du >= ox0) & (du <= ox1) & (dv >= oy0) & (dv <= oy1)
         src[inside] = 0.18
         alpha[inside] = 1.0
-    lat, y, fwd, seen = photo_points(person, uu, vv, None, ipd, nose_depth)
-    alpha[np.abs(lat) > 0.98 * HEAD_RADIUS * ipd] = 0.0  # beyond the head
+    lat, y, fwd, seen = photo_points(person, uu, vv, None, ipd)
+    alpha[np.isnan(lat) | (np.abs(lat) > 0.98 * HEAD_RADIUS * ipd)] = 0.0  # beyond the head
+    lat, fwd = np.nan_to_num(lat), np.nan_to_num(fwd)
     # where the photograph saw the surface at too much of a slant to draw it (one photograph
     # pixel spreading over more than SLANT_STRETCH), its colour is filled in from around
     unseen = (seen < 1.0 / SLANT_STRETCH).ravel()
