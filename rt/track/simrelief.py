@@ -80,7 +80,7 @@ UP_SPAN = (-2.6, 1.9)
 BLEND = 5.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # an array inside: compared by identity
 class MeasuredRelief:
     """A scanned face's relief: ``depth`` (rows, cols) IPDs in front of the eyes on the grid
     lateral -LAT_SPAN.. (columns), up UP_SPAN[0].. (rows), ``GRID`` IPD apart (cell centres
@@ -115,7 +115,7 @@ class MeasuredRelief:
         depth = weight * depth + (1.0 - weight) * cylinder(lat)[None, :]
         made = MeasuredRelief(depth, (float(tip[0]), float(tip[1])))
         # the eyes on the surface at depth 0 exactly, as the photographs' pupils are placed:
-        # less the plane through the map's depth at the two eyes (a tilt of a few degrees)
+        # less the plane through the map's depth at the two eyes
         at = made.forward(np.array([-0.5, 0.5]), np.zeros(2), made.tip, 1.0)
         plane = 0.5 * (at[0] + at[1]) + (at[1] - at[0]) * lat
         return MeasuredRelief(depth - plane[None, :], made.tip)
@@ -126,7 +126,7 @@ class MeasuredRelief:
         """How far (metres) the surface stands forward of the eyes at ``lat`` metres across
         the face and ``y`` metres up, for a photograph whose nose tip is at ``tip`` (lateral,
         up metres): below the eyes the scan is stretched vertically so its tip is as far
-        below them as the photograph's and sheared sideways (in proportion to the depth
+        below them as the photograph's and sheared sideways (in proportion to the height
         below the eyes, all of it from the tip down) so its tip lies under the photograph's;
         above the eyes it is the scan's."""
         lat = np.asarray(lat, np.float64) / ipd
