@@ -19,10 +19,10 @@ measured face (``tests.support.people.relief``: its nose, eye sockets, cheeks an
 real face has them); luispedro, photographed turned, on the model relief (a cylinder and a
 nose ridge: his far cheek lies beyond the scan's jaw). A head drawn far from its photograph's
 turn keeps the nose's look as photographed (:mod:`viewcomp.rt.track.simscene`): drawn turned
-25 and 45 degrees, YuNet's nose moves a median 0.76 and 0.74 (the astronaut; 0.61 and 0.55 on
-the model relief), 0.60 and 0.63 (Hopper) and 0.76 and 0.72 (luispedro) times as far from the
-eyes' midpoint as the drawn tip (on real photographs it stands 0.72-1.05 as far out as a
-hand-marked tip).
+25 and 45 degrees, YuNet's nose moves a median 0.76 and 0.74 (the astronaut; 0.48 and 0.46 on
+the model relief), 0.60 and 0.63 (Hopper; 0.60 and 0.43) and 0.76 and 0.72 (luispedro) times
+as far from the eyes' midpoint as the drawn tip (on real photographs it stands 0.72-1.05 as
+far out as a hand-marked tip).
 - ``james``: James Booth, menpo3d's textured face scan (menpo3d 0.8.6's data, BSD; fetched
   by ``scripts/fetch_scan.py``) with its authors' 68 landmarks in 3-D
   (:mod:`viewcomp.rt.track.simscan`): measured surface, so a turned head shows its own nose
