@@ -23,6 +23,7 @@ detector puts a nose).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt, gaussian_filter, map_coordinates
@@ -31,6 +32,21 @@ from scipy.ndimage import distance_transform_edt, gaussian_filter, map_coordinat
 # IPD in front of the pupils. The simulator's own, not the tracker's anatomy.NOSE_DEPTH.
 RIDGE = 0.5
 HEAD_RADIUS = 1.3  # the head's roundness: a cylinder of this radius, in IPDs (82 mm)
+
+
+class Relief(Protocol):
+    """A surface a photograph can be painted on (:class:`Ridge`, :class:`MeasuredRelief`)."""
+
+    def forward(
+        self, lat: np.ndarray, y: np.ndarray, tip: tuple[float, float], ipd: float
+    ) -> np.ndarray:
+        """How far (metres) the surface stands in front of the eyes at ``lat`` metres across
+        the face and ``y`` metres up, for a photograph whose nose tip is at ``tip``."""
+        ...
+
+    def mirrored(self) -> Relief:
+        """The relief of the mirrored face."""
+        ...
 
 
 def cylinder(lat: np.ndarray, ipd: float = 1.0) -> np.ndarray:

@@ -48,9 +48,7 @@ from viewcomp.calib.emu.profiles import WEBCAM
 from viewcomp.calib.world.response import parse_response
 from viewcomp.calib.world.rig import Device
 from viewcomp.rt.track.anatomy import IPD
-from viewcomp.rt.track.simrelief import HEAD_RADIUS, MODEL, MeasuredRelief, Ridge
-
-Relief = Ridge | MeasuredRelief  # the surfaces a photograph can be painted on
+from viewcomp.rt.track.simrelief import HEAD_RADIUS, MODEL, Relief
 
 # A photograph's pixel of a surface it saw at a slant covers more of it: drawn where one
 # spreads over at most this many times its size (a slant of 70 degrees)
@@ -212,21 +210,25 @@ def seen_lat(
     else:
         seen = reach <= np.minimum.accumulate(reach[:, ::-1], axis=1)[:, ::-1]
     j = np.clip(np.rint((y - lo) / step).astype(np.int64), 0, len(rows) - 1)
+    order = np.argsort(j, kind="stable")  # the pixels row by row
+    bounds = np.searchsorted(j[order], np.arange(len(rows) + 1))
     lat = np.empty(len(x))
     miss = np.zeros(len(x), bool)
-    for r in np.unique(j):
-        q = j == r
-        ends = reach[r][seen[r]]
-        lat[q] = np.interp(x[q], ends, lats[seen[r]])
-        miss[q] = (x[q] < ends[0]) | (x[q] > ends[-1])
+    for r in range(len(rows)):
+        q = order[bounds[r] : bounds[r + 1]]
+        if len(q):
+            ends = reach[r][seen[r]]
+            lat[q] = np.interp(x[q], ends, lats[seen[r]])
+            miss[q] = (x[q] < ends[0]) | (x[q] > ends[-1])
     fwd = relief.forward
     g0 = lat * c + fwd(lat, y, tip, ipd) * sn - x
-    out, h = lat.copy(), 1e-4 * ipd
-    for _ in range(6):
-        g = out * c + fwd(out, y, tip, ipd) * sn - x
+    out, g, h = lat.copy(), g0, 1e-4 * ipd
+    for _ in range(6):  # Newton's method: converged in 2-3 steps where the photograph saw well
         slope = (fwd(out + h, y, tip, ipd) - fwd(out - h, y, tip, ipd)) / (2 * h)
         out = out - g / np.maximum(c + slope * sn, 0.05)
-    g = out * c + fwd(out, y, tip, ipd) * sn - x
+        g = out * c + fwd(out, y, tip, ipd) * sn - x
+        if not np.any(np.abs(g) >= 1e-7 * ipd):
+            break
     good = (np.abs(g) < 1e-7 * ipd) & (np.abs(out - lat) < 2.0 * step)
     miss |= ~good & (np.abs(g0) > 0.01 * ipd)  # between a fold's two sides: not placed
     return np.where(miss, np.nan, np.where(good, out, lat))

@@ -23,7 +23,7 @@ def people() -> list[Person]:
     grid): the astronaut, Grace Hopper, Luis Pedro Coelho (a head turned and tilted). The two
     photographed facing the camera are painted on the scanned head's measured relief
     (:func:`relief`); luispedro, photographed turned 34 degrees, on the model relief
-    (:class:`~viewcomp.rt.track.simscene.Ridge`): his far cheek, which his photograph saw at a
+    (:class:`~viewcomp.rt.track.simrelief.Ridge`): his far cheek, which his photograph saw at a
     slant, lies beyond the scan's narrower jaw, so drawn frontal on the scan's relief his face
     has holes where it finds no surface and YuNet reads it turned (median distance 1.06-1.12
     of the truth facing the camera or watching the screen)."""
