@@ -71,6 +71,43 @@ def cut(box: np.ndarray, region: tuple[int, int, int, int], shape: tuple[int, ..
     )
 
 
+# A landmark's mirror image: the eyes and the mouth corners change sides.
+MIRRORED = (1, 0, 2, 4, 3)
+
+
+def mirrored(rows: np.ndarray, width: int) -> np.ndarray:
+    """(M, 15) YuNet rows (box, landmarks, score) of an image ``width`` pixels wide, as they
+    lie in the image mirrored left to right (pixel centres at integers): x becomes
+    width - 1 - x, a box's left edge is its right one's mirror, and the landmarks keep
+    YuNet's order (the eye on the image's left first)."""
+    r = np.array(rows, np.float64).reshape(-1, 15)
+    r[:, 0] = width - 1 - (r[:, 0] + r[:, 2])
+    marks = r[:, 4:14].reshape(-1, 5, 2)[:, MIRRORED]
+    marks[..., 0] = width - 1 - marks[..., 0]
+    r[:, 4:14] = marks.reshape(-1, 10)
+    return r
+
+
+def mirror_average(row: np.ndarray, seen: np.ndarray, width: int) -> np.ndarray:
+    """(15,) ``row``, a face YuNet found in an image ``width`` pixels wide, averaged with its
+    reading in the image mirrored left to right: the one of ``seen`` (M, 15, rows found in
+    the mirrored image) whose box centre lies nearest ``row``'s, mirrored back; ``row``
+    itself where none lies within 0.3 of its box's width. Box, landmarks and score are each
+    the mean of the two.
+
+    YuNet's landmarks are not mirror-symmetric: a face and its mirror image are read with
+    their eyes and nose a fraction of a pixel apart differently (more on a small face), which
+    reads a turn and a range where there is neither. The mean of a reading and its mirror's
+    has no such lean, and less scatter than either."""
+    back = mirrored(seen, width)
+    centres = back[:, :2] + back[:, 2:4] / 2
+    d = np.hypot(*(centres - (row[:2] + row[2:4] / 2)).T)
+    j = int(np.argmin(d))
+    if d[j] > 0.3 * row[2]:
+        return row
+    return 0.5 * (row + back[j])
+
+
 @dataclass
 class Faces:
     """One frame's faces, strongest first.
@@ -127,6 +164,8 @@ class YuNetConfig:
     ``candidate`` to ``score`` is looked at again in that crop, where it is larger, and kept
     if the crop finds it with ``score`` or more (a far face half covered by a hand scores
     0.2-0.5 in the frame and about 0.9 in the crop); ``candidate`` = ``score``: never.
+    ``mirror``: each crop is also read mirrored left to right and the two readings averaged
+    (:func:`mirror_average`); twice a crop's time, for landmarks that do not lean to one side.
     """
 
     score: float = 0.6
@@ -136,6 +175,7 @@ class YuNetConfig:
     refine_px: float = 48.0
     refine_box_px: float = 160.0
     candidate: float = 0.2
+    mirror: bool = True
 
 
 class YuNetDetector:
@@ -228,11 +268,16 @@ class YuNetDetector:
         i = int(np.argmin(np.hypot(*(centres - centre).T)))
         if np.hypot(*(centres[i] - centre)) > 0.3 * box[2]:
             return None  # another face
-        x, y, bw, bh = f[i, :4]
+        row = f[i]
+        if self.config.mirror:
+            _, seen = self.crop_net.detect(np.ascontiguousarray(crop[:, ::-1]))
+            if seen is not None and len(seen) > 0:
+                row = mirror_average(row, np.asarray(seen, np.float64).reshape(-1, 15), size[0])
+        x, y, bw, bh = row[:4]
         corners = to_frame(np.array([[x, y], [x + bw, y], [x, y + bh], [x + bw, y + bh]]))
         lo, hi = corners.min(axis=0), corners.max(axis=0)
-        marks = to_frame(f[i, 4:14].reshape(5, 2)).ravel()
-        return np.concatenate([lo, hi - lo, marks, f[i, 14:15]])
+        marks = to_frame(row[4:14].reshape(5, 2)).ravel()
+        return np.concatenate([lo, hi - lo, marks, row[14:15]])
 
     def _second_look(
         self, frame: np.ndarray, box: np.ndarray, quick: bool
