@@ -140,7 +140,8 @@ def _stdin_fd() -> int | None:
 def _tracker(args: argparse.Namespace, rig: object, all_faces: bool) -> tuple[object, ...]:
     """The face tracker of ``--track-camera`` (opened now, so a bad SRC fails early): the
     bundle's tracking camera or ``--tracker``'s, ``--detector``, ``--ipd`` and
-    ``--no-face-height`` as for ``viewcomp track``, its other options at their defaults."""
+    ``--no-face-height`` and ``--no-mirror`` as for ``viewcomp track``, its other options at
+    their defaults."""
     from viewcomp.calib.errors import UsageError
 
     if not args.track_camera:
@@ -160,6 +161,7 @@ def _tracker(args: argparse.Namespace, rig: object, all_faces: bool) -> tuple[ob
     options = replace(
         options,
         tracker=replace(options.tracker, face_height=not args.no_face_height),
+        yunet=replace(options.yunet, mirror=not args.no_mirror),
         detector_kind=args.detector,
         ipd=checked_ipd(args, rig),
         realtime=True,  # a video or an image sequence is paced as a camera would be

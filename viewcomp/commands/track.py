@@ -54,6 +54,14 @@ def add_tracking_camera_arguments(g: argparse._ArgumentGroup) -> None:
         help="range every face by its eyes' separation alone (default: each viewer's face "
         "height, eyes to mouth, learned while they face the screen, ranges their turned head)",
     )
+    g.add_argument(
+        "--no-mirror",
+        action="store_true",
+        help="--detector yunet: read a small face's enlarged crop once (default: also "
+        "mirrored, the two readings averaged: YuNet's landmarks lean to one side, by up to "
+        "a few %% of the distance; the mirror costs a second crop, about 10 ms a face a frame "
+        "on one core)",
+    )
 
 
 def add_tracker_arguments(p: argparse.ArgumentParser) -> None:
@@ -205,6 +213,7 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
     from viewcomp.rt.play.live import InputError, check_angle, check_eye
     from viewcomp.rt.track.run import TrackOptions
     from viewcomp.rt.track.tracker import TrackerConfig
+    from viewcomp.rt.track.yunet import YuNetConfig
 
     try:
         if args.default_eye:
@@ -234,6 +243,7 @@ def tracker_options(args: argparse.Namespace, rig: object) -> object:
         fps=args.fps,
         realtime=getattr(args, "realtime", False),
         tracker=config,
+        yunet=YuNetConfig(mirror=not args.no_mirror),
     )
 
 
