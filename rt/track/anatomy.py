@@ -33,7 +33,8 @@ the face nodding by a known angle (:func:`nod`).
 
 The two ranges are combined by what each can be wrong by (:func:`ranged_eyes`). A detector's
 nose point may move less than the real tip when the head turns (YuNet's stands 0.72-1.05 as far
-out as a hand-marked tip on real photographs), so the turn is read short and the IPD's range
+out as a hand-marked tip on real photographs along the hand-marked eye line, 0.59-1.00 along
+its own), so the turn is read short and the IPD's range
 long; a nose deeper than the model's reads it long. ``nose_depth`` is the middle of what the
 two allow together (:data:`NOSE_DEPTH`), and the true turn lies between the read one with its
 nose offset shrunk to ``NOSE_LAG`` and grown to ``NOSE_LEAD`` times (:func:`turn_bounds`): a
@@ -66,7 +67,11 @@ IPD = 0.063  # metres: mean adult interpupillary distance
 # (32 mm): the nose tip's depth, 0.57-0.59 IPD (MediaPipe's canonical face model, a population
 # model in centimetres: 0.574 for its nose tip, 0.592 for its most forward point, from the eyes'
 # lid centres; menpo3d's scanned head: 0.57), times how far out YuNet puts it against a
-# hand-marked tip on real photographs, 0.72-1.05: 0.41-0.62, whose middle this is.
+# hand-marked tip on real photographs, 0.72-1.05 along the hand-marked eye line: 0.41-0.62,
+# whose middle this is. (Along YuNet's own eye line, as a turn is read, 0.59-1.00 on the same
+# photographs, bench/bench_nose_photographs.py: 0.34-0.57, whose middle, 0.45, reads the one
+# head seen turned in 3-D over-turned, its nose 0.82-0.87 of its tip; docs/INTERFACES.md,
+# "What a redrawn photograph cannot show".)
 NOSE_DEPTH = 0.5
 MAX_YAW = np.radians(60.0)  # a larger estimate is clipped (a nearly profile face)
 # A face whose read yaw is under FRONTAL measures its viewer's face height, unless the height

@@ -16,6 +16,19 @@ from viewcomp.rt.track.simrelief import MeasuredRelief
 from viewcomp.rt.track.simscan import Scan, read_obj
 from viewcomp.rt.track.simscene import Person
 
+# luispedro.jpg's pupil centres (the image's left eye first) and nose tip, pixels, marked by hand
+LUISPEDRO_EYES = ((68.0, 170.0), (146.0, 157.0))
+LUISPEDRO_TIP = (85.0, 212.0)
+
+
+def luispedro_path() -> Path:
+    """mahotas' demo photograph ``luispedro.jpg`` (a test dependency)."""
+    try:
+        import mahotas
+    except ImportError:  # not skipped: the bias test must not vanish quietly
+        pytest.fail('mahotas is missing: pip install -e ".[test]" (it ships luispedro.jpg)')
+    return Path(mahotas.__file__).parent / "demos" / "data" / "luispedro.jpg"
+
 
 @functools.cache
 def people() -> list[Person]:
@@ -30,20 +43,16 @@ def people() -> list[Person]:
     import matplotlib
     from skimage.data import astronaut
 
-    try:
-        import mahotas
-    except ImportError:  # not skipped: the bias test must not vanish quietly
-        pytest.fail('mahotas is missing: pip install -e ".[test]" (it ships luispedro.jpg)')
     mpl = Path(matplotlib.get_data_path()) / "sample_data" / "grace_hopper.jpg"
-    lp = Path(mahotas.__file__).parent / "demos" / "data" / "luispedro.jpg"
+    lp = luispedro_path()
     face = relief()
     return [
         Person.annotated("astronaut", np.ascontiguousarray(astronaut()[:, :, ::-1]),
                          ((204, 101), (246, 104)), (222, 126), (224, 118, 88, 108), face),
         Person.annotated("hopper", cv2.imread(str(mpl)),
                          ((220, 189.5), (304, 186)), (265, 240), (262, 200, 105, 140), face),
-        Person.annotated("luispedro", cv2.imread(str(lp)),
-                         ((68, 170), (146, 157)), (85, 212), (135, 180, 110, 150)),
+        Person.annotated("luispedro", cv2.imread(str(lp)), LUISPEDRO_EYES, LUISPEDRO_TIP,
+                         (135, 180, 110, 150)),
     ]  # fmt: skip
 
 
