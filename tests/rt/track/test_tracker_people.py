@@ -21,8 +21,8 @@ nose ridge: his far cheek lies beyond the scan's jaw). A head drawn far from its
 turn keeps the nose's look as photographed (:mod:`viewcomp.rt.track.simscene`): drawn turned
 25 and 45 degrees, YuNet's nose moves a median 0.70 and 0.73 (the astronaut; 0.55 and 0.46 on
 the model relief), 0.69 and 0.66 (Hopper; 0.64 and 0.48) and 0.73 and 0.77 (luispedro) times
-as far from the eyes' midpoint as the drawn tip (on real photographs it stands 0.72-1.05 as
-far out as a hand-marked tip).
+as far from the eyes' midpoint as the drawn tip (on real photographs, along its own eye
+line, it stands 0.59-1.00 as far out as a hand-marked tip).
 - ``james``: James Booth, menpo3d's textured face scan (menpo3d 0.8.6's data, BSD; fetched
   by ``scripts/fetch_scan.py``) with its authors' 68 landmarks in 3-D
   (:mod:`viewcomp.rt.track.simscan`): measured surface, so a turned head shows its own nose
@@ -236,7 +236,7 @@ NAMES = ("astronaut", "hopper", "luispedro", "james")
 # seed 0): expected failures, strict (a pass means the reason is out of date):
 PAINTED = (
     "%s: her photograph, taken frontal, redrawn turned keeps its painted nose, which YuNet "
-    "reads moving %s as far as the drawn tip (0.72-1.05 on real photographs; the ranging "
+    "reads moving %s as far as the drawn tip (0.59-1.00 on real photographs; the ranging "
     "allows 0.8-1.25 of its model's, anatomy.NOSE_LAG): the turn is read short, the distance "
     "long"
 )
@@ -263,6 +263,19 @@ def test_median_distance_ratio_is_within_5_percent(measured, name, cond):
     """The issue's bias criterion per person and condition: the median of measured / true
     distance within 0.95..1.05 (the box-size tracker was 0.70 on other people's photos)."""
     s = scores(measured[name, cond]["truth"], measured[name, cond]["got"])
+    assert 0.95 <= s["median_ratio"] <= 1.05, s
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_median_distance_ratio_per_person_is_within_5_percent(measured, name):
+    """The issue's median criterion as it reads, per person: the median of measured / true
+    distance over all conditions (84 frames) within 0.95..1.05 (measured 0.989 / 1.033 /
+    0.995 / 0.964: astronaut, Hopper, luispedro, james). Per condition, above, two cells
+    still miss."""
+    t = np.concatenate([measured[name, c]["truth"] for c in CONDITIONS])
+    g = np.concatenate([measured[name, c]["got"] for c in CONDITIONS])
+    s = scores(t, g)
     assert 0.95 <= s["median_ratio"] <= 1.05, s
 
 
