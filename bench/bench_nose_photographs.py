@@ -14,7 +14,7 @@ whole-image search, where it makes no difference): the nose tip's offset from th
 midpoint along the eye line, over the eyes' separation, hand-marked (``marked``) and YuNet's
 (``yunet``: along YuNet's own eye line, as the tracker reads a turn; ``yunet_on_marked_line``:
 along the hand-marked eye line, which rolls YuNet's nose with the hand's eye line), and their
-ratios. Run from the repository root (about 5 s after the fetch)::
+ratios. Run from the repository root (a few seconds after the fetch)::
 
     .venv/bin/python bench/bench_nose_photographs.py
 """

