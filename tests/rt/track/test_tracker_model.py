@@ -294,9 +294,19 @@ def test_a_pose_of_other_faces_is_refused():
         EyeTracker().update(np.full((2, 3), 2.0), np.zeros((2, 4)), 0.0, p)
 
 
-def test_no_face_height_reaches_track_and_play(tmp_path: Path):
-    """``--no-face-height`` (shared by ``track`` and ``play --track-camera``) turns the face
-    height off in the tracker each command builds; it is on by default."""
+@pytest.mark.parametrize(
+    ("flag", "in_track", "in_play"),
+    [
+        ("--no-face-height", lambda o: o.tracker.face_height,
+         lambda p: p.tracker.config.face_height),
+        ("--no-mirror", lambda o: o.yunet.mirror,
+         lambda p: p.yunet.frame_detector.config.mirror),
+    ],
+)  # fmt: skip
+def test_tracking_switches_reach_track_and_play(tmp_path: Path, flag, in_track, in_play):
+    """``--no-face-height`` and ``--no-mirror`` (shared by ``track`` and ``play
+    --track-camera``) turn the face height, and YuNet's mirrored second reading of a crop, off
+    in the tracker each command builds; both are on by default."""
     from viewcomp.cli import build_parser
     from viewcomp.commands.play import _tracker
     from viewcomp.commands.track import tracker_options
@@ -304,45 +314,18 @@ def test_no_face_height_reaches_track_and_play(tmp_path: Path):
     write_walk(tmp_path / "w", seconds=12.0, fps=10.0, frames=2)
     rig = walk_rig()
     parser = build_parser()
-    for extra, on in (([], True), (["--no-face-height"], False)):
+    for extra, on in (([], True), ([flag], False)):
         rig_file = str(tmp_path / "w" / "rig.toml")
         args = parser.parse_args(
             ["track", "--camera", str(tmp_path / "w"), "--rig", rig_file, *extra]
         )
-        assert tracker_options(args, rig).tracker.face_height is on  # type: ignore[attr-defined]
+        assert in_track(tracker_options(args, rig)) is on
         args = parser.parse_args(
             ["play", "x.vcb", "clip.mp4", "--track-camera", str(tmp_path / "w"), *extra]
         )
         (thread,) = _tracker(args, rig, False)
         try:
-            assert thread.pipeline.tracker.config.face_height is on  # type: ignore[attr-defined]
-        finally:
-            thread.pipeline.close()  # type: ignore[attr-defined]
-
-
-def test_no_mirror_reaches_track_and_play(tmp_path: Path):
-    """``--no-mirror`` (shared by ``track`` and ``play --track-camera``) has YuNet read each
-    refinement crop once in the detector each command builds; by default also mirrored."""
-    from viewcomp.cli import build_parser
-    from viewcomp.commands.play import _tracker
-    from viewcomp.commands.track import tracker_options
-
-    write_walk(tmp_path / "w", seconds=12.0, fps=10.0, frames=2)
-    rig = walk_rig()
-    parser = build_parser()
-    for extra, on in (([], True), (["--no-mirror"], False)):
-        rig_file = str(tmp_path / "w" / "rig.toml")
-        args = parser.parse_args(
-            ["track", "--camera", str(tmp_path / "w"), "--rig", rig_file, *extra]
-        )
-        assert tracker_options(args, rig).yunet.mirror is on  # type: ignore[attr-defined]
-        args = parser.parse_args(
-            ["play", "x.vcb", "clip.mp4", "--track-camera", str(tmp_path / "w"), *extra]
-        )
-        (thread,) = _tracker(args, rig, False)
-        try:
-            faces = thread.pipeline.yunet  # type: ignore[attr-defined]
-            assert faces.frame_detector.config.mirror is on
+            assert in_play(thread.pipeline) is on  # type: ignore[attr-defined]
         finally:
             thread.pipeline.close()  # type: ignore[attr-defined]
 
