@@ -100,13 +100,13 @@ def _sha256(path: Path) -> str:
 
 
 def damaged(dest: Path | None = None, archive: Archive | None = None) -> list[str]:
-    """The files of ``archive`` (None: the scan's, :data:`MEMBERS`) missing from ``dest``
-    (None: :data:`DEST`, or the archive's own) or not as published."""
-    members = MEMBERS if archive is None else archive.members
-    dest = (DEST if archive is None else archive.dest) if dest is None else dest
+    """The files of ``archive`` (None: the scan's, :data:`SCAN`) missing from ``dest`` (None:
+    the archive's) or not as published."""
+    a = SCAN if archive is None else archive
+    dest = a.dest if dest is None else dest
     return [
         name
-        for name, digest in members.values()
+        for name, digest in a.members.values()
         if not (dest / name).is_file() or _sha256(dest / name) != digest
     ]
 

@@ -13,8 +13,9 @@ nose tip lies at ``tip`` (lateral, up) metres. Two kinds:
   :meth:`MeasuredRelief.of_surface`), stretched down and sheared sideways so its nose tip
   lies under the photograph's: the nose's wings and bridge, the eye sockets, the cheeks and
   the lips stand where a real face has them (the astronaut's photograph drawn turned 25 and
-  45 degrees on it: YuNet reads her painted nose moving a median 0.76 and 0.74 as far as the
-  drawn tip, as on real photographs; on the ridge 0.48 and 0.46, measured the same way).
+  45 degrees on it: YuNet reads her painted nose moving a median 0.70 and 0.73 as far as the
+  drawn tip, within what real photographs show; on the ridge 0.55 and 0.46, measured the same
+  way).
 
 Neither is the tracker's nose model (``anatomy.NOSE_DEPTH``, which allows for how far out a
 detector puts a nose).

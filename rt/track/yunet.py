@@ -269,7 +269,7 @@ class YuNetDetector:
             return None  # another face
         row = f[i]
         if self.config.mirror:
-            _, seen = self.crop_net.detect(np.ascontiguousarray(crop[:, ::-1]))
+            _, seen = self.crop_net.detect(cv2.flip(crop, 1))
             if seen is not None and len(seen) > 0:
                 row = mirror_average(row, np.asarray(seen, np.float64).reshape(-1, 15), size[0])
         x, y, bw, bh = row[:4]
