@@ -174,11 +174,16 @@ class YuNetConfig:
     0.2-0.5 in the frame and about 0.9 in the crop); ``candidate`` = ``score``: never.
     ``mirror``: each crop is also read mirrored left to right and the two readings averaged
     (:func:`mirror_average`); twice a crop's time, for landmarks that do not lean to one side.
-    ``sure``: a large face (eyes ``refine_px`` apart or more) that the search scores from
-    ``score`` to ``sure`` is kept only if its refinement crop finds it both as it is and
-    mirrored (:meth:`YuNetDetector.confirmed`; the faces of the tracker's people test score
-    0.90-0.95 when large, 0.83 or more in such a crop either way; a cup on a saucer 0.64,
-    and 0.32 in its crop). A face the tracker follows (:meth:`follow`) is not checked again.
+    ``sure``: a face that the search scores from ``score`` to ``sure`` is kept only if its
+    refinement crop finds it both as it is and mirrored (:meth:`YuNetDetector.confirmed`): a
+    small one is refined there anyway (a newcomer's first reading, not refined, is kept); a
+    large one (eyes ``refine_px`` apart or more), which the crop would only shrink, is looked
+    at for that alone. A face is one both ways; a face-like pattern need not be: a cup on a
+    saucer scores 0.64 in the frame and 0.32 in its crop, galaxies of the Hubble deep field
+    0.62-0.75 as far faces and up to 0.67 in their crops, but are not found mirrored. The
+    faces of the tracker's people test score 0.90-0.95 when large, and 0.83 or more in
+    their crops either way. A face the tracker follows (:meth:`follow`) is kept wherever its
+    crop finds it.
     """
 
     score: float = 0.6
@@ -263,20 +268,23 @@ class YuNetDetector:
         return crop, lambda uv: (np.asarray(uv, np.float64) + 0.5) / k - 0.5 + [x0, y0]
 
     def refine(
-        self, frame: np.ndarray, box: np.ndarray, box_px: float | None = None
+        self, frame: np.ndarray, box: np.ndarray, box_px: float | None = None, both: bool = False
     ) -> np.ndarray | None:
         """(15,) box, landmarks and score of the face in ``box`` (x, y, w, h pixels) found
         again in its refinement crop (:meth:`_crop`: a view pointed at it with a ``device``;
         the box ``box_px`` pixels wide in it, None: ``refine_box_px``), in frame pixels (the
         box: the one around its corners), or None when the crop does not find it or finds
-        another face."""
+        another face; with ``both``, also when the crop mirrored left to right does not find
+        it (read mirrored whatever ``mirror`` says)."""
         crop, to_frame = self._crop(frame, box, box_px)
         row = self._read(crop, to_frame, box)
         if row is None:
             return None
-        if self.config.mirror:
+        if self.config.mirror or both:
             seen = self._read_mirrored(crop)
-            if len(seen) > 0:
+            if both and mirror_match(row, seen, crop.shape[1]) is None:
+                return None
+            if self.config.mirror:
                 row = mirror_average(row, seen, crop.shape[1])
         x, y, bw, bh = row[:4]
         corners = to_frame(np.array([[x, y], [x + bw, y], [x, y + bh], [x + bw, y + bh]]))
@@ -317,18 +325,20 @@ class YuNetDetector:
         be (scikit-image's cup of coffee, scored 0.64 in a 1280x720 frame and ranged 0.64 m
         away, scores 0.32 in its crop and 0.18 mirrored). With ``refusals``, a place refused
         lately is not looked at (False) until it is due again."""
-        seen = self.refusals
+        return self._checked(frame, box, unsure=True) is not None
+
+    def _checked(self, frame: np.ndarray, box: np.ndarray, unsure: bool) -> np.ndarray | None:
+        """:meth:`refine` of a face the search found at ``box`` (x, y, w, h pixels); an
+        ``unsure`` one (scored under ``sure``) must be found both as it is and mirrored, is
+        not looked at (None) where ``refusals`` says its crop refused one lately, and its
+        crop's verdict is remembered there."""
+        seen = self.refusals if unsure else None
         if seen is not None and not seen.due(box):
-            return False
-        crop, to_frame = self._crop(frame, box)
-        row = self._read(crop, to_frame, box)
-        ok = (
-            row is not None
-            and mirror_match(row, self._read_mirrored(crop), crop.shape[1]) is not None
-        )
+            return None
+        row = self.refine(frame, box, both=unsure)
         if seen is not None:
-            seen.found(box) if ok else seen.refused(box)
-        return ok
+            seen.refused(box) if row is None else seen.found(box)
+        return row
 
     def _second_look(
         self, frame: np.ndarray, box: np.ndarray, quick: bool
@@ -431,7 +441,8 @@ class YuNetDetector:
         with the crop's reading (:meth:`_second_look`: coarse only for a newcomer that a
         search at reduced ``scale`` found and a crop at the frame's own resolution confirms);
         a large one is left out, and so is one where ``refusals`` says the refinement crop
-        refused one lately."""
+        refused one lately. A face scored from ``score`` to ``sure`` is kept only where its
+        crop finds it (``YuNetConfig.sure``; a newcomer's unrefined first reading is kept)."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -476,8 +487,10 @@ class YuNetDetector:
                     row[:], coarse[i] = again, quick
             elif newcomer:
                 coarse[i] = True
-            elif (better := self.refine(frame, row[:4].copy())) is not None:
+            elif (better := self._checked(frame, row[:4].copy(), row[14] < c.sure)) is not None:
                 row[:14] = better[:14]
+            else:
+                keep[i] = row[14] >= c.sure  # an unsure face its crop does not find
         order = np.argsort(-f[keep, 14], kind="stable")  # strongest first again
         f, coarse = f[keep][order], coarse[keep][order]
         marks = f[:, 4:14].reshape(-1, 5, 2)

@@ -90,9 +90,9 @@ def test_a_newcomer_costs_its_first_frame_no_crop_and_no_tile(monkeypatch):
     crops = []
     refine = YuNetDetector.refine
 
-    def counted(self, frame, box, box_px=None):
+    def counted(self, frame, box, box_px=None, **kw):
         crops.append(box)
-        return refine(self, frame, box, box_px)
+        return refine(self, frame, box, box_px, **kw)
 
     monkeypatch.setattr(YuNetDetector, "refine", counted)
     live = LiveFaces()
@@ -124,9 +124,9 @@ def test_a_newcomer_the_half_frame_scores_low_is_confirmed_in_its_own_pixels(mon
     crops = []
     refine = YuNetDetector.refine
 
-    def counted(self, frame, box, box_px=None):
+    def counted(self, frame, box, box_px=None, **kw):
         crops.append(None if box_px is None else box_px / box[2])  # the box's scale
-        return refine(self, frame, box, box_px)
+        return refine(self, frame, box, box_px, **kw)
 
     monkeypatch.setattr(YuNetDetector, "refine", counted)
     live = LiveFaces(device=dev)

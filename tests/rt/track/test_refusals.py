@@ -76,8 +76,8 @@ def count_crops(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
     crops: list[bool] = []
     refine = YuNetDetector.refine
 
-    def counted(self, frame, box, box_px=None):
-        row = refine(self, frame, box, box_px)
+    def counted(self, frame, box, box_px=None, **kw):
+        row = refine(self, frame, box, box_px, **kw)
         if box_px is None:
             crops.append(row is not None)
         return row
