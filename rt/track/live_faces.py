@@ -39,6 +39,9 @@ frame waits for it. :class:`LiveFaces` spreads that search over frames:
   from it, knows the face's next reading by its box and starts afresh from it): newcomers at
   0.8-3.5 m, 60-120 degrees, are within 10 cm and 10 % in about 80 % of first readings
   (distance error median 6 %, at most 20 %) against 97 % refined (docs/BENCHMARKS.md).
+  Where a crop refused a face the search scored just over the threshold (a picture taken for
+  a face: ``YuNetConfig.sure``), a newcomer scored so is checked in its crop first, so such
+  a picture is published once, for the tracker's hold, not each time the tiles reach it.
 
 All of it runs in the caller's thread and the work per frame is bounded. (A worker thread
 searching whole frames back to back took 200-400 ms a search with one of two cores busy, so

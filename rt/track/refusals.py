@@ -1,7 +1,9 @@
 """Where a second look found no face: such a place is looked at less and less often.
 
 YuNet's search keeps a small face it scores under the threshold only if the face's
-refinement crop finds it (``candidate`` of :class:`~viewcomp.rt.track.yunet.YuNetConfig`).
+refinement crop finds it (``candidate`` of :class:`~viewcomp.rt.track.yunet.YuNetConfig`),
+and one it scores just over it only if the crop finds it both as it is and mirrored
+(``sure``); a live newcomer scored so is checked only where a refusal is remembered.
 A pattern of the room that the search takes for such a face on every frame, and that the
 crop refuses every time, would cost a crop (a few tens of milliseconds of the frame's work)
 on every frame for as long as it is in view: the half-resolution search of
@@ -70,6 +72,10 @@ class Refusals:
         overlap = iou(np.asarray(box, np.float64), np.stack([p.box for p in self._places]))
         i = int(np.argmax(overlap))
         return self._places[i] if overlap[i] > SAME_FACE else None
+
+    def remembers(self, box: np.ndarray) -> bool:
+        """Whether a refused place lies at ``box`` (4,) (whether or not its wait is over)."""
+        return self._at(box) is not None
 
     def due(self, box: np.ndarray) -> bool:
         """Whether a candidate at ``box`` (4,) is to be looked at on this frame (no refused

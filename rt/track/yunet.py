@@ -176,14 +176,14 @@ class YuNetConfig:
     (:func:`mirror_average`); twice a crop's time, for landmarks that do not lean to one side.
     ``sure``: a face that the search scores from ``score`` to ``sure`` is kept only if its
     refinement crop finds it both as it is and mirrored (:meth:`YuNetDetector.confirmed`): a
-    small one is refined there anyway (a newcomer's first reading, not refined, is kept); a
-    large one (eyes ``refine_px`` apart or more), which the crop would only shrink, is looked
-    at for that alone. A face is one both ways; a face-like pattern need not be: a cup on a
-    saucer scores 0.64 in the frame and 0.32 in its crop, galaxies of the Hubble deep field
-    0.62-0.75 as far faces and up to 0.67 in their crops, but are not found mirrored. The
-    faces of the tracker's people test score 0.90-0.95 when large, and 0.83 or more in
-    their crops either way. A face the tracker follows (:meth:`follow`) is kept wherever its
-    crop finds it.
+    small one is refined there anyway (a live newcomer's first reading is kept unrefined,
+    unless ``refusals`` remembers a refusal there); a large one (eyes ``refine_px`` apart or
+    more), which the crop would only shrink, is looked at for that alone. A face is one both
+    ways; a face-like pattern need not be: a cup on a saucer scores 0.64 in the frame and
+    0.32 in its crop, galaxies of the Hubble deep field 0.62-0.75 as far faces and up to
+    0.67 in their crops, but are not found mirrored. The faces of the tracker's people test
+    score 0.90-0.95 when large, and 0.83 or more in their crops either way. A face the
+    tracker follows (:meth:`follow`) is kept wherever its crop finds it.
     """
 
     score: float = 0.6
@@ -313,25 +313,24 @@ class YuNetDetector:
         return None if np.hypot(*(centres[i] - centre)) > 0.3 * box[2] else f[i]
 
     def _read_mirrored(self, crop: np.ndarray) -> np.ndarray:
-        """(M, 15) the faces the crop net finds in ``crop`` mirrored left to right, in the
-        mirrored crop's pixels (after :meth:`_read` of the same crop: its input size)."""
+        """(M, 15) the faces in ``crop`` mirrored (its pixels), after :meth:`_read` of it."""
         _, seen = self.crop_net.detect(cv2.flip(crop, 1))
         return np.zeros((0, 15)) if seen is None else np.asarray(seen, np.float64).reshape(-1, 15)
 
     def confirmed(self, frame: np.ndarray, box: np.ndarray) -> bool:
         """Whether the face at ``box`` (x, y, w, h pixels) is one in its refinement crop
-        both as it is and mirrored left to right (each scored ``score`` or more). A face is
-        a face both ways; a face-like pattern the search scores just over ``score`` need not
-        be (scikit-image's cup of coffee, scored 0.64 in a 1280x720 frame and ranged 0.64 m
-        away, scores 0.32 in its crop and 0.18 mirrored). With ``refusals``, a place refused
-        lately is not looked at (False) until it is due again."""
+        both as it is and mirrored left to right (``YuNetConfig.sure``); where ``refusals``
+        says its crop refused one lately, False until it is due again."""
         return self._checked(frame, box, unsure=True) is not None
 
+    def _doubted(self, box: np.ndarray) -> bool:
+        """Whether ``refusals`` remembers a refusal at ``box`` (x, y, w, h pixels): an unsure
+        newcomer there is checked (a picture would come back each time its track ends)."""
+        return self.refusals is not None and self.refusals.remembers(box)
+
     def _checked(self, frame: np.ndarray, box: np.ndarray, unsure: bool) -> np.ndarray | None:
-        """:meth:`refine` of a face the search found at ``box`` (x, y, w, h pixels); an
-        ``unsure`` one (scored under ``sure``) must be found both as it is and mirrored, is
-        not looked at (None) where ``refusals`` says its crop refused one lately, and its
-        crop's verdict is remembered there."""
+        """:meth:`refine` of a face found at ``box`` (x, y, w, h pixels); an ``unsure`` one
+        is found both ways or not at all (None), also where ``refusals`` says not yet."""
         seen = self.refusals if unsure else None
         if seen is not None and not seen.due(box):
             return None
@@ -442,7 +441,8 @@ class YuNetDetector:
         search at reduced ``scale`` found and a crop at the frame's own resolution confirms);
         a large one is left out, and so is one where ``refusals`` says the refinement crop
         refused one lately. A face scored from ``score`` to ``sure`` is kept only where its
-        crop finds it (``YuNetConfig.sure``; a newcomer's unrefined first reading is kept)."""
+        crop finds it both ways (``YuNetConfig.sure``; a newcomer's unrefined first reading is
+        kept, unless ``refusals`` remembers a refusal there: :meth:`_doubted`)."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -474,7 +474,7 @@ class YuNetDetector:
         keep = np.ones(len(f), bool)
         for i, row in enumerate(f):  # small faces: landmarks again from an enlarged crop
             if np.linalg.norm(row[6:8] - row[4:6]) >= c.refine_px:
-                # a large face the crop would only shrink: unsure, only confirmed in it
+                # a large face the crop would only shrink; an unsure one only where it finds it
                 keep[i] = row[14] >= c.score and (
                     row[14] >= c.sure or self.confirmed(frame, row[:4].copy())
                 )
@@ -485,7 +485,7 @@ class YuNetDetector:
                 keep[i] = again is not None and not overlaps(again[:4], f[:i][keep[:i], :4])
                 if again is not None and keep[i]:
                     row[:], coarse[i] = again, quick
-            elif newcomer:
+            elif newcomer and not (row[14] < c.sure and self._doubted(row[:4])):
                 coarse[i] = True
             elif (better := self._checked(frame, row[:4].copy(), row[14] < c.sure)) is not None:
                 row[:14] = better[:14]

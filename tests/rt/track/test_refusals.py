@@ -34,6 +34,17 @@ def looks(refusals: Refusals, frames: int, box: np.ndarray = BOX) -> list[int]:
     return out
 
 
+def test_a_refused_place_is_remembered_without_being_offered():
+    refusals = Refusals(max_wait=2, forget=3)
+    assert not refusals.remembers(BOX)
+    refusals.refused(BOX)
+    assert refusals.remembers(aside(3.0)) and not refusals.remembers(aside(60.0))
+    for _ in range(4):  # asked, not offered: forgotten as if nobody asked
+        refusals.tick()
+        refusals.remembers(BOX)
+    assert not refusals.remembers(BOX)
+
+
 def test_a_place_refused_again_and_again_waits_twice_as_long_each_time():
     assert looks(Refusals(), 140) == [0, 2, 5, 10, 19, 36, 69, 102, 135]
     assert looks(Refusals(max_wait=4, forget=8), 30) == [0, 2, 5, 10, 15, 20, 25]
