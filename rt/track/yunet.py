@@ -116,6 +116,14 @@ def mirror_match(row: np.ndarray, seen: np.ndarray, width: int) -> np.ndarray | 
     return None if d[j] > 0.3 * row[2] else back[j]
 
 
+def sure_both_ways(row: np.ndarray, match: np.ndarray | None, sure: float) -> bool:
+    """Whether a face's reading in its crop, ``row`` (15,), and its reading in the crop
+    mirrored, ``match`` (15,; None: not found), score ``sure`` or more on average: a face
+    the search is unsure of must be one its enlarged crop is sure of, both ways (a galaxy
+    of the Hubble deep field, 0.68 in the search, reads 0.68 and 0.61 in its crop)."""
+    return match is not None and (row[14] + match[14]) / 2 >= sure
+
+
 @dataclass
 class Faces:
     """One frame's faces, strongest first.
@@ -170,20 +178,22 @@ class YuNetConfig:
     are coarse, about a pixel, i.e. 7 % of the range at 15 pixels between the eyes; 0: never).
     ``candidate``: a small face (eyes closer than ``refine_px``) that the search scores from
     ``candidate`` to ``score`` is looked at again in that crop, where it is larger, and kept
-    if the crop finds it with ``score`` or more (a far face half covered by a hand scores
-    0.2-0.5 in the frame and about 0.9 in the crop); ``candidate`` = ``score``: never.
+    if the crop is sure of it both ways (:func:`sure_both_ways`; a far face half covered by
+    a hand scores 0.2-0.5 in the frame and about 0.9 in the crop); ``candidate`` =
+    ``score``: never.
     ``mirror``: each crop is also read mirrored left to right and the two readings averaged
     (:func:`mirror_average`); twice a crop's time, for landmarks that do not lean to one side.
     ``sure``: a face that the search scores from ``score`` to ``sure`` is kept only if its
-    refinement crop finds it both as it is and mirrored (:meth:`YuNetDetector.confirmed`): a
-    small one is refined there anyway (a live newcomer's first reading is kept unrefined,
-    unless ``refusals`` remembers a refusal there); a large one (eyes ``refine_px`` apart or
-    more), which the crop would only shrink, is looked at for that alone. A face is one both
-    ways; a face-like pattern need not be: a cup on a saucer scores 0.64 in the frame and
-    0.32 in its crop, galaxies of the Hubble deep field 0.62-0.75 as far faces and up to
-    0.67 in their crops, but are not found mirrored. The faces of the tracker's people test
-    score 0.90-0.95 when large, and 0.83 or more in their crops either way. A face the
-    tracker follows (:meth:`follow`) is kept wherever its crop finds it.
+    refinement crop finds it both as it is and mirrored, scoring ``sure`` on average
+    (:meth:`YuNetDetector.confirmed`, :func:`sure_both_ways`): a small one is refined there
+    anyway (a live newcomer's first reading is kept unrefined, unless ``refusals``
+    remembers a refusal there); a large one (eyes ``refine_px`` apart or more), which the
+    crop would only shrink, is looked at for that alone. A face is one both ways; a
+    face-like pattern need not be: a cup on a saucer scores 0.64 in the frame and 0.32 in
+    its crop, galaxies of the Hubble deep field 0.62-0.75 as far faces and 0.60-0.68 in
+    their crops (0.61 mirrored, where found at all). The faces of the tracker's people test score
+    0.90-0.95 when large, and 0.83 or more in their crops either way. A face the tracker
+    follows (:meth:`follow`) is kept wherever its crop finds it.
     """
 
     score: float = 0.6
@@ -274,18 +284,18 @@ class YuNetDetector:
         again in its refinement crop (:meth:`_crop`: a view pointed at it with a ``device``;
         the box ``box_px`` pixels wide in it, None: ``refine_box_px``), in frame pixels (the
         box: the one around its corners), or None when the crop does not find it or finds
-        another face; with ``both``, also when the crop mirrored left to right does not find
-        it (read mirrored whatever ``mirror`` says)."""
+        another face; with ``both``, also unless :func:`sure_both_ways` (read mirrored
+        whatever ``mirror`` says)."""
         crop, to_frame = self._crop(frame, box, box_px)
         row = self._read(crop, to_frame, box)
         if row is None:
             return None
         if self.config.mirror or both:
-            seen = self._read_mirrored(crop)
-            if both and mirror_match(row, seen, crop.shape[1]) is None:
+            seen, w = self._read_mirrored(crop), crop.shape[1]
+            if both and not sure_both_ways(row, mirror_match(row, seen, w), self.config.sure):
                 return None
             if self.config.mirror:
-                row = mirror_average(row, seen, crop.shape[1])
+                row = mirror_average(row, seen, w)
         x, y, bw, bh = row[:4]
         corners = to_frame(np.array([[x, y], [x + bw, y], [x, y + bh], [x + bw, y + bh]]))
         lo, hi = corners.min(axis=0), corners.max(axis=0)
@@ -318,15 +328,10 @@ class YuNetDetector:
         return np.zeros((0, 15)) if seen is None else np.asarray(seen, np.float64).reshape(-1, 15)
 
     def confirmed(self, frame: np.ndarray, box: np.ndarray) -> bool:
-        """Whether the face at ``box`` (x, y, w, h pixels) is one in its refinement crop
-        both as it is and mirrored left to right (``YuNetConfig.sure``); where ``refusals``
-        says its crop refused one lately, False until it is due again."""
+        """Whether the face at ``box`` (x, y, w, h pixels) is one its refinement crop is
+        sure of both ways (:func:`sure_both_ways`); where ``refusals`` says its crop refused
+        one lately, False until it is due again."""
         return self._checked(frame, box, unsure=True) is not None
-
-    def _doubted(self, box: np.ndarray) -> bool:
-        """Whether ``refusals`` remembers a refusal at ``box`` (x, y, w, h pixels): an unsure
-        newcomer there is checked (a picture would come back each time its track ends)."""
-        return self.refusals is not None and self.refusals.remembers(box)
 
     def _checked(self, frame: np.ndarray, box: np.ndarray, unsure: bool) -> np.ndarray | None:
         """:meth:`refine` of a face found at ``box`` (x, y, w, h pixels); an ``unsure`` one
@@ -347,15 +352,15 @@ class YuNetDetector:
         a face there, else (None, False). With ``quick`` (a newcomer the search saw at
         reduced resolution) first in a crop at the frame's own resolution (a few times
         smaller than the refinement's: a reading as coarse as a full-resolution search's);
-        then in the refinement crop. Where ``refusals`` says the refinement crop refused one
-        there lately, not at all."""
+        then in the refinement crop, both ways (:func:`sure_both_ways`). Where ``refusals``
+        says the refinement crop refused one there lately, not at all."""
         seen = self.refusals
         if seen is not None and not seen.due(box):
             return None, False
         row = self.refine(frame, box, float(box[2])) if quick else None
         coarse = row is not None
         if row is None:
-            row = self.refine(frame, box)
+            row = self.refine(frame, box, both=True)
         if seen is not None:
             seen.refused(box) if row is None else seen.found(box)
         return row, coarse
@@ -442,7 +447,7 @@ class YuNetDetector:
         a large one is left out, and so is one where ``refusals`` says the refinement crop
         refused one lately. A face scored from ``score`` to ``sure`` is kept only where its
         crop finds it both ways (``YuNetConfig.sure``; a newcomer's unrefined first reading is
-        kept, unless ``refusals`` remembers a refusal there: :meth:`_doubted`)."""
+        kept, unless ``refusals`` remembers a refusal there)."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
@@ -480,12 +485,16 @@ class YuNetDetector:
                 )
                 continue
             newcomer = refine_near is not None and not overlaps(row[:4], refine_near)
+            # where a crop refused one lately, an unsure newcomer is checked, not taken at
+            # once: a picture taken for a face would come back each time its track ended
+            doubted = self.refusals is not None and self.refusals.remembers(row[:4])
             if row[14] < c.score:
-                again, quick = self._second_look(frame, row[:4].copy(), newcomer and scale < 1)
+                quick = newcomer and scale < 1 and not doubted
+                again, quick = self._second_look(frame, row[:4].copy(), quick)
                 keep[i] = again is not None and not overlaps(again[:4], f[:i][keep[:i], :4])
                 if again is not None and keep[i]:
                     row[:], coarse[i] = again, quick
-            elif newcomer and not (row[14] < c.sure and self._doubted(row[:4])):
+            elif newcomer and not (row[14] < c.sure and doubted):
                 coarse[i] = True
             elif (better := self._checked(frame, row[:4].copy(), row[14] < c.sure)) is not None:
                 row[:14] = better[:14]
