@@ -191,9 +191,9 @@ class YuNetConfig:
     crop would only shrink, is looked at for that alone. A face is one both ways; a
     face-like pattern need not be: a cup on a saucer scores 0.64 in the frame and 0.32 in
     its crop, galaxies of the Hubble deep field 0.62-0.75 as far faces and 0.60-0.68 in
-    their crops (0.61 mirrored, where found at all). The faces of the tracker's people test score
-    0.90-0.95 when large, and 0.83 or more in their crops either way. A face the tracker
-    follows (:meth:`follow`) is kept wherever its crop finds it.
+    their crops (0.61 mirrored, where found at all). The faces of the tracker's people
+    test score 0.90-0.95 when large, and 0.83 or more in their crops either way. A face the
+    tracker follows (:meth:`follow`) is kept wherever its crop finds it.
     """
 
     score: float = 0.6
@@ -446,8 +446,8 @@ class YuNetDetector:
         search at reduced ``scale`` found and a crop at the frame's own resolution confirms);
         a large one is left out, and so is one where ``refusals`` says the refinement crop
         refused one lately. A face scored from ``score`` to ``sure`` is kept only where its
-        crop finds it both ways (``YuNetConfig.sure``; a newcomer's unrefined first reading is
-        kept, unless ``refusals`` remembers a refusal there)."""
+        crop is sure of it both ways (``YuNetConfig.sure``; a newcomer's unrefined first
+        reading is kept, unless ``refusals`` remembers a refusal there)."""
         small, x0, y0 = frame, 0, 0
         if region is not None:
             x0, y0, rw, rh = region
