@@ -1,5 +1,6 @@
-"""A face the search scores just over the threshold is kept only if its crop finds it both as
-it is and mirrored (``YuNetConfig.sure``, :meth:`YuNetDetector.confirmed`)."""
+"""A face the search scores just over the threshold is kept only if its crop is sure of it both
+as it is and mirrored (``YuNetConfig.sure``, :meth:`YuNetDetector.confirmed`,
+:func:`~viewcomp.rt.track.yunet.sure_both_ways`)."""
 
 from __future__ import annotations
 
@@ -48,8 +49,8 @@ def test_a_face_like_photograph_is_not_a_viewer(name):
 
 def test_far_face_like_galaxies_are_not_viewers():
     """The Hubble deep field enlarged 1.3 times: the search reads two galaxies as far faces
-    (0.65-0.66, 18-22 pixels between the eyes: about 2 m away); their crops find one of them as it
-    is, neither mirrored."""
+    (0.65-0.66, 18-22 pixels between the eyes: about 2 m away); their crops find one of
+    them as it is, neither mirrored."""
     dev = walk_camera()
     frame = frame_with(data.hubble_deep_field(), 1.3, (100, 50))
     unsure = YuNetDetector(YuNetConfig(sure=0.6), device=dev).detect(frame)
