@@ -60,7 +60,7 @@ def add_tracking_camera_arguments(g: argparse._ArgumentGroup) -> None:
         help="--detector yunet: read a small face's enlarged crop once (default: also "
         "mirrored, the two readings averaged: YuNet's landmarks lean to one side, by up to "
         "a few %% of the distance; the mirror costs a second crop, about 10 ms a face a frame "
-        "on one core)",
+        "on one core). A face scored under 0.8 is still read mirrored, to check that it is one",
     )
 
 
