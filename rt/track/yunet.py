@@ -487,14 +487,14 @@ class YuNetDetector:
             newcomer = refine_near is not None and not overlaps(row[:4], refine_near)
             # where a crop refused one lately, an unsure newcomer is checked, not taken at
             # once: a picture taken for a face would come back each time its track ended
-            doubted = self.refusals is not None and self.refusals.remembers(row[:4])
+            doubted = newcomer and self.refusals is not None and self.refusals.remembers(row[:4])
             if row[14] < c.score:
-                quick = newcomer and scale < 1 and not doubted
-                again, quick = self._second_look(frame, row[:4].copy(), quick)
+                look = newcomer and scale < 1 and not doubted  # the quick look first
+                again, quick = self._second_look(frame, row[:4].copy(), look)
                 keep[i] = again is not None and not overlaps(again[:4], f[:i][keep[:i], :4])
                 if again is not None and keep[i]:
                     row[:], coarse[i] = again, quick
-            elif newcomer and not (row[14] < c.sure and doubted):
+            elif newcomer and not (doubted and row[14] < c.sure):
                 coarse[i] = True
             elif (better := self._checked(frame, row[:4].copy(), row[14] < c.sure)) is not None:
                 row[:14] = better[:14]
