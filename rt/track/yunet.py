@@ -88,17 +88,14 @@ def mirrored(rows: np.ndarray, width: int) -> np.ndarray:
     return r
 
 
-def mirror_average(row: np.ndarray, seen: np.ndarray, width: int) -> np.ndarray:
-    """(15,) ``row``, a face YuNet found in an image ``width`` pixels wide, averaged with its
-    reading in the image mirrored left to right: the one of ``seen`` (M, 15, rows found in
-    the mirrored image) whose box centre lies nearest ``row``'s, mirrored back; ``row``
-    itself where none lies within 0.3 of its box's width. Box, landmarks and score are each
-    the mean of the two.
+def mirror_average(row: np.ndarray, match: np.ndarray | None) -> np.ndarray:
+    """(15,) ``row``, a face YuNet found in an image, averaged with ``match``, its reading in
+    the image mirrored left to right, mirrored back (:func:`mirror_match`); ``row`` itself
+    where that found none (None). Box, landmarks and score are each the mean of the two.
 
     YuNet's landmarks are not mirror-symmetric: a face and its mirror image are read up to
     a pixel or two apart (1.7 pixels with 25 pixels between the eyes), a turn and a range
     that are not there. The mean of a reading and its mirror's leans neither way."""
-    match = mirror_match(row, seen, width)
     return row if match is None else 0.5 * (row + match)
 
 
@@ -291,11 +288,11 @@ class YuNetDetector:
         if row is None:
             return None
         if self.config.mirror or both:
-            seen, w = self._read_mirrored(crop), crop.shape[1]
-            if both and not sure_both_ways(row, mirror_match(row, seen, w), self.config.sure):
+            match = mirror_match(row, self._read_mirrored(crop), crop.shape[1])
+            if both and not sure_both_ways(row, match, self.config.sure):
                 return None
             if self.config.mirror:
-                row = mirror_average(row, seen, w)
+                row = mirror_average(row, match)
         x, y, bw, bh = row[:4]
         corners = to_frame(np.array([[x, y], [x + bw, y], [x, y + bh], [x + bw, y + bh]]))
         lo, hi = corners.min(axis=0), corners.max(axis=0)

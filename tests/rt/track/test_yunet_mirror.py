@@ -13,6 +13,7 @@ from viewcomp.rt.track.yunet import (
     YuNetConfig,
     YuNetDetector,
     mirror_average,
+    mirror_match,
     mirrored,
 )
 
@@ -37,8 +38,11 @@ def test_mirror_average_takes_the_nearest_face_or_none():
     other = ROW.copy()
     other[0] += 50.0
     seen = mirrored(np.stack([other, ROW + 1.0]), 100)
-    np.testing.assert_allclose(mirror_average(ROW, seen, 100), ROW + 0.5)
-    np.testing.assert_array_equal(mirror_average(ROW, seen[:1], 100), ROW)
+    np.testing.assert_allclose(mirror_match(ROW, seen, 100), ROW + 1.0)
+    np.testing.assert_allclose(mirror_average(ROW, mirror_match(ROW, seen, 100)), ROW + 0.5)
+    assert mirror_match(ROW, seen[:1], 100) is None
+    assert mirror_match(ROW, seen[:0], 100) is None
+    np.testing.assert_array_equal(mirror_average(ROW, None), ROW)
 
 
 def _centred_face() -> tuple[np.ndarray, np.ndarray]:
